@@ -1,0 +1,27 @@
+"""Ideal pinhole camera: no distortion."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .model import CameraModel
+
+
+class PinholeCamera(CameraModel):
+    model = "pinhole"
+
+    def distort(self, xy):
+        return np.asarray(xy, dtype=np.float64).copy()
+
+    def undistort(self, xy_d):
+        return np.asarray(xy_d, dtype=np.float64).copy()
+
+    def distort_jacobian(self, xy):
+        return np.broadcast_to(np.eye(2), (len(xy), 2, 2)).copy()
+
+    def distortion_params(self):
+        return []
+
+    def to_dict(self):
+        return {"model": self.model, "width": self.width, "height": self.height,
+                "fx": self.fx, "fy": self.fy, "cx": self.cx, "cy": self.cy}

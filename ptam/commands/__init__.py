@@ -1,0 +1,1 @@
+"""Implementations of the ``ptam`` subcommands (thin: parse, call the library, print)."""

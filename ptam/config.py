@@ -1,0 +1,224 @@
+"""Typed configuration: one dataclass per section, values from ``configs/default.yaml``.
+
+The dataclasses carry types only; every default value lives in the YAML file, commented with its source.
+``load_config`` overlays ``--config`` files and ``--set section.key=value`` overrides, rejecting unknown
+keys (with a "did you mean" suggestion) and values of the wrong type with a :class:`ConfigError`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import os
+import typing
+from dataclasses import dataclass, fields
+
+import yaml
+
+from .errors import ConfigError
+from .resources import resource_path
+
+
+@dataclass(frozen=True)
+class ImageConfig:
+    levels: int
+    fast_thresholds: list[int]
+    shi_tomasi_half_box: int
+    shi_tomasi_min: float
+    candidate_border_px: int
+
+
+@dataclass(frozen=True)
+class PatchConfig:
+    size: int
+    max_ssd_per_pixel: float
+    det_min: float
+    det_max: float
+    subpix_iterations: int
+    subpix_converge_px: float
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    max_patches: int
+    coarse_points: int
+    coarse_min_points: int
+    coarse_radius_px: float
+    coarse_min_velocity: float
+    fine_radius_px: float
+    fine_radius_after_coarse_px: float
+    irls_iterations: int
+    relinearise_every: int
+    min_tukey_sigma: float
+    quality_good: float
+    quality_lost: float
+    lost_frames: int
+    valid_radius_factor: float
+    motion_decay: float
+    motion_blend: float
+
+
+@dataclass(frozen=True)
+class CaptureConfig:
+    default_fps: float
+    camera_size: list[int]
+    camera_fps: float
+    video_missing_frames_tolerance: int
+
+
+@dataclass(frozen=True)
+class EvalConfig:
+    max_time_diff_s: float
+    rpe_delta_s: float
+
+
+@dataclass(frozen=True)
+class SyntheticConfig:
+    cache_dir: str
+
+
+@dataclass(frozen=True)
+class SystemConfig:
+    mode: str
+
+
+@dataclass(frozen=True)
+class Config:
+    image: ImageConfig
+    patch: PatchConfig
+    tracker: TrackerConfig
+    capture: CaptureConfig
+    eval: EvalConfig
+    synthetic: SyntheticConfig
+    system: SystemConfig
+
+    def replace(self, **changes: str) -> Config:
+        """A copy with ``section.key`` values changed, e.g. ``cfg.replace(**{"tracker.max_patches": 500})``."""
+        return apply_overrides(self, [f"{k}={v!r}" if isinstance(v, str) else f"{k}={v}"
+                                      for k, v in changes.items()])
+
+
+_CHOICES = {("system", "mode"): ("async", "sync", "realtime")}
+
+
+def _section_types() -> dict[str, type]:
+    return {f.name: typing.get_type_hints(Config)[f.name] for f in fields(Config)}
+
+
+def _suggest(name: str, options) -> str:
+    close = difflib.get_close_matches(name, list(options), n=1, cutoff=0.5)
+    return f" (did you mean '{close[0]}'?)" if close else ""
+
+
+def _coerce(where: str, value, typ):
+    """Check ``value`` against a field type; ints are accepted where floats are expected."""
+    origin = typing.get_origin(typ)
+    if origin is list:
+        (inner,) = typing.get_args(typ)
+        if not isinstance(value, (list, tuple)):
+            raise ConfigError(f"config: {where} must be a list of {inner.__name__}, got {value!r}")
+        return [_coerce(f"{where}[{i}]", v, inner) for i, v in enumerate(value)]
+    if typ is bool:
+        if isinstance(value, bool):
+            return value
+    elif typ is int:
+        if isinstance(value, int) and not isinstance(value, bool):
+            return value
+    elif typ is float:
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            return float(value)
+    elif typ is str:
+        if isinstance(value, str):
+            return value
+    raise ConfigError(f"config: {where} must be {typ.__name__}, got {value!r}")
+
+
+def _merge(base: dict, overlay, source: str) -> None:
+    if not isinstance(overlay, dict):
+        raise ConfigError(f"{source}: expected a mapping of sections")
+    sections = _section_types()
+    for sec, values in overlay.items():
+        if sec not in sections:
+            raise ConfigError(f"{source}: unknown config section '{sec}'{_suggest(str(sec), sections)}")
+        if not isinstance(values, dict):
+            raise ConfigError(f"{source}: section '{sec}' must be a mapping")
+        for key, v in values.items():
+            _set(base, sec, key, v, source)
+
+
+def _set(base: dict, sec: str, key: str, value, source: str) -> None:
+    sections = _section_types()
+    if sec not in sections:
+        raise ConfigError(f"{source}: unknown config section '{sec}'{_suggest(sec, sections)}")
+    hints = typing.get_type_hints(sections[sec])
+    if key not in hints:
+        options = [f"{sec}.{k}" for k in hints] + [f"{s}.{k}" for s in sections
+                                                    for k in typing.get_type_hints(sections[s])]
+        raise ConfigError(f"{source}: unknown config key '{sec}.{key}'{_suggest(f'{sec}.{key}', options)}")
+    value = _coerce(f"{sec}.{key}", value, hints[key])
+    choices = _CHOICES.get((sec, key))
+    if choices and value not in choices:
+        raise ConfigError(f"config: {sec}.{key} must be one of {', '.join(choices)}, got {value!r}")
+    base.setdefault(sec, {})[key] = value
+
+
+def _build(raw: dict) -> Config:
+    sections = _section_types()
+    built = {}
+    for sec, cls in sections.items():
+        values = raw.get(sec, {})
+        missing = [f.name for f in fields(cls) if f.name not in values]
+        if missing:
+            raise ConfigError(f"config: section '{sec}' is missing {', '.join(missing)}")
+        built[sec] = cls(**values)
+    return Config(**built)
+
+
+def _read_yaml(path: str):
+    if not os.path.isfile(path):
+        raise ConfigError(f"config file not found: {path}")
+    try:
+        with open(path) as f:
+            return yaml.safe_load(f) or {}
+    except (OSError, yaml.YAMLError) as e:
+        raise ConfigError(f"cannot read config {path}: {str(e).splitlines()[0]}") from None
+
+
+def parse_override(text: str) -> tuple[str, str, object]:
+    """``section.key=value`` -> (section, key, value), the value parsed as YAML (so 3, 0.5, [1, 2], true)."""
+    if "=" not in text or "." not in text.split("=", 1)[0]:
+        raise ConfigError(f"--set expects section.key=value, got '{text}'")
+    lhs, rhs = text.split("=", 1)
+    sec, key = lhs.strip().split(".", 1)
+    try:
+        value = yaml.safe_load(rhs) if rhs.strip() else ""
+    except yaml.YAMLError:
+        value = rhs
+    return sec, key, value
+
+
+def _to_raw(cfg: Config) -> dict:
+    return {f.name: dataclasses.asdict(getattr(cfg, f.name)) for f in fields(Config)}
+
+
+def apply_overrides(cfg: Config, overrides: list[str]) -> Config:
+    raw = _to_raw(cfg)
+    for text in overrides:
+        sec, key, value = parse_override(text)
+        _set(raw, sec, key, value, "--set")
+    return _build(raw)
+
+
+def load_config(config_files: list[str] | None = None, overrides: list[str] | None = None) -> Config:
+    """Defaults from configs/default.yaml, then each ``--config`` file, then each ``--set`` override."""
+    raw: dict = {}
+    default = str(resource_path("configs/default.yaml"))
+    _merge(raw, _read_yaml(default), default)
+    for path in config_files or []:
+        _merge(raw, _read_yaml(path), path)
+    cfg = _build(raw)
+    return apply_overrides(cfg, overrides or [])
+
+
+def default_config() -> Config:
+    return load_config()
