@@ -1,0 +1,69 @@
+"""2-D patch trails followed from the first keyframe during stereo initialisation (PTAM §6.1).
+
+PTAM code (``Tracker::TrailTracking_Start/Advance``): up to 1000 maximal FAST corners of level 0 with
+the best Shi-Tomasi scores start trails. Each frame, a trail's patch from the first keyframe is searched
+at FAST corners around the trail's last position; a backward search of the found patch in the previous
+frame must land within √2 px of where the trail was, or the trail is dropped.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..image.fast import fast_corners
+from ..image.pyramid import Pyramid
+from ..image.shi_tomasi import shi_tomasi
+from ..kernels.minipatch import minipatch_find
+
+
+class TrailTracker:
+    def __init__(self, init_cfg, image_cfg):
+        self.cfg = init_cfg
+        self.image_cfg = image_cfg
+        self.first: Pyramid | None = None
+        self.previous: Pyramid | None = None
+        self.start_xy = np.zeros((0, 2), np.int32)
+        self.current_xy = np.zeros((0, 2), np.int32)
+        self.frames = 0
+
+    @property
+    def n_trails(self) -> int:
+        return len(self.start_xy)
+
+    def start(self, pyramid: Pyramid) -> int:
+        img = pyramid.levels[0]
+        xy = fast_corners(img, self.image_cfg.fast_thresholds[0], nonmax=True)
+        h = self.cfg.trail_half_patch
+        H, W = img.shape
+        xy = xy[(xy[:, 0] >= h) & (xy[:, 1] >= h) & (xy[:, 0] < W - h) & (xy[:, 1] < H - h)]
+        score = shi_tomasi(img, xy, self.image_cfg.shi_tomasi_half_box)
+        order = np.argsort(-score, kind="stable")[: self.cfg.max_trails]
+        self.start_xy = np.ascontiguousarray(xy[order], dtype=np.int32)
+        self.current_xy = self.start_xy.copy()
+        self.first = self.previous = pyramid
+        self.frames = 0
+        return self.n_trails
+
+    def advance(self, pyramid: Pyramid) -> int:
+        """Follow every trail into ``pyramid``; drops the trails that fail. Returns the number kept."""
+        if self.first is None or self.n_trails == 0:
+            return 0
+        c = self.cfg
+        fwd, ok = minipatch_find(self.first.levels[0], self.start_xy, pyramid.levels[0], self.current_xy,
+                                 pyramid.corners[0], pyramid.row_lut[0], c.trail_search_radius_px,
+                                 c.trail_half_patch, c.trail_max_ssd)
+        back, ok_b = minipatch_find(pyramid.levels[0], fwd, self.previous.levels[0], fwd,
+                                    self.previous.corners[0], self.previous.row_lut[0], c.trail_search_radius_px,
+                                    c.trail_half_patch, c.trail_max_ssd)
+        d2 = ((back - self.current_xy) ** 2).sum(axis=1)
+        keep = ok & ok_b & (d2 <= c.trail_backward_tolerance_px2)
+        self.start_xy = self.start_xy[keep]
+        self.current_xy = fwd[keep]
+        self.previous = pyramid
+        self.frames += 1
+        return self.n_trails
+
+    def median_disparity(self) -> float:
+        if self.n_trails == 0:
+            return 0.0
+        return float(np.median(np.linalg.norm((self.current_xy - self.start_xy).astype(np.float64), axis=1)))

@@ -1,0 +1,31 @@
+"""The trail patch-search kernel against its numpy reference, and on a known image shift."""
+
+import numpy as np
+
+from ptam.image.fast import fast_corners
+from ptam.image.pyramid import row_lut
+from ptam.kernels.minipatch import minipatch_find, minipatch_find_ref
+
+
+def _texture(rng, h=120, w=160):
+    import cv2
+
+    img = rng.integers(0, 256, (h // 4, w // 4)).astype(np.uint8)
+    return cv2.resize(img, (w, h), interpolation=cv2.INTER_CUBIC)
+
+
+def test_kernel_matches_reference_and_finds_a_shift():
+    rng = np.random.default_rng(0)
+    big = _texture(rng, 140, 180)
+    src = np.ascontiguousarray(big[10:130, 10:170])
+    dst = np.ascontiguousarray(big[7:127, 14:174])  # content moves by (-4, +3)
+    src_xy = fast_corners(src, 10, nonmax=True)
+    src_xy = src_xy[(src_xy[:, 0] > 12) & (src_xy[:, 0] < 147) & (src_xy[:, 1] > 12) & (src_xy[:, 1] < 107)]
+    corners = fast_corners(dst, 10, nonmax=False)
+    lut = row_lut(corners, dst.shape[0])
+    found, ok = minipatch_find(src, src_xy, dst, src_xy, corners, lut, 10, 4, 9999)
+    found_r, ok_r = minipatch_find_ref(src, src_xy, dst, src_xy, corners, 10, 4, 9999)
+    assert np.array_equal(ok, ok_r) and np.array_equal(found[ok], found_r[ok_r])
+    assert ok.sum() > 0.8 * len(src_xy)
+    shift = found[ok] - src_xy[ok]
+    assert np.mean(np.all(shift == [-4, 3], axis=1)) > 0.95
