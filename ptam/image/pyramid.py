@@ -36,16 +36,19 @@ def row_lut(corners: np.ndarray, height: int) -> np.ndarray:
     return np.searchsorted(corners[:, 1], np.arange(height + 1), side="left").astype(np.int32)
 
 
-def level_to_zero(xy: np.ndarray, level: int) -> np.ndarray:
-    """Level-L pixel coordinates -> level-0 pixel coordinates."""
-    s = float(1 << level)
-    return (np.asarray(xy, dtype=np.float64) + 0.5) * s - 0.5
+def _scale(level) -> np.ndarray:
+    s = np.exp2(np.asarray(level, dtype=np.float64))
+    return s[..., None] if s.ndim else s
 
 
-def zero_to_level(xy: np.ndarray, level: int) -> np.ndarray:
-    """Level-0 pixel coordinates -> level-L pixel coordinates."""
-    s = float(1 << level)
-    return (np.asarray(xy, dtype=np.float64) + 0.5) / s - 0.5
+def level_to_zero(xy: np.ndarray, level) -> np.ndarray:
+    """Level-L pixel coordinates (N, 2) -> level-0 pixel coordinates; ``level`` a scalar or one per row."""
+    return (np.asarray(xy, dtype=np.float64) + 0.5) * _scale(level) - 0.5
+
+
+def zero_to_level(xy: np.ndarray, level) -> np.ndarray:
+    """Level-0 pixel coordinates (N, 2) -> level-L pixel coordinates; ``level`` a scalar or one per row."""
+    return (np.asarray(xy, dtype=np.float64) + 0.5) / _scale(level) - 0.5
 
 
 @dataclass(frozen=True)
@@ -71,7 +74,7 @@ class Pyramid:
             raise InputError(f"pyramid needs a 2-D uint8 greyscale image, got {img.dtype} with shape {img.shape}")
         if min(img.shape) >> (n - 1) < 8:
             raise InputError(f"image of shape {img.shape} is too small for a {n}-level pyramid")
-        levels = [np.ascontiguousarray(img)]
+        levels = [np.array(img, order="C", copy=True)]  # ours to freeze, never the caller's
         for _ in range(1, n):
             levels.append(half_sample(levels[-1]))
         corners = [fast_corners(im, t, nonmax=False) for im, t in zip(levels, image_cfg.fast_thresholds)]

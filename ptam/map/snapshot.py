@@ -1,0 +1,61 @@
+"""The immutable view of the map that the tracker reads (DESIGN.md, Concurrency).
+
+The mapper publishes a new ``MapSnapshot`` after every change and swaps one reference; the tracker reads
+whichever snapshot is current, without locks. Every array is read-only. Keyframe, point and measurement arrays
+are copies; the per-level keyframe image stacks are views of the map's append-only stacks.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .keyframe import KeyFrame
+
+
+@dataclass(frozen=True, eq=False)
+class MapSnapshot:
+    """Keyframe i is ``keyframes[i]`` with pose ``kf_T_cw[i]`` and level-L image ``kf_images[L][i]``.
+
+    Points (all, including bad ones, so indices stay stable): ``X`` world position, ``normal`` unit patch
+    normal in the world frame, ``source_kf``/``source_level``/``source_xy`` the patch source (pixel at the
+    source level), ``bad``. Measurements: keyframe ``meas_kf`` observed point ``meas_pt`` at level-0 pixel
+    ``meas_xy`` on pyramid level ``meas_level``, made by ``meas_source`` (``map.SRC_*``).
+    """
+
+    version: int
+    keyframes: tuple[KeyFrame, ...]
+    kf_T_cw: np.ndarray
+    kf_images: tuple[np.ndarray, ...]
+    X: np.ndarray
+    normal: np.ndarray
+    source_kf: np.ndarray
+    source_level: np.ndarray
+    source_xy: np.ndarray
+    bad: np.ndarray
+    meas_kf: np.ndarray
+    meas_pt: np.ndarray
+    meas_xy: np.ndarray
+    meas_level: np.ndarray
+    meas_source: np.ndarray
+    good_point_indices: np.ndarray
+
+    @property
+    def n_keyframes(self) -> int:
+        return len(self.keyframes)
+
+    @property
+    def n_points(self) -> int:
+        """Number of good (not bad) points."""
+        return len(self.good_point_indices)
+
+    @property
+    def camera_centres(self) -> np.ndarray:
+        """(N, 3) keyframe camera centres in the world frame."""
+        return camera_centres(self.kf_T_cw)
+
+
+def camera_centres(T_cw: np.ndarray) -> np.ndarray:
+    """Camera centres −Rᵀt of world-to-camera poses (N, 4, 4) -> (N, 3)."""
+    return -np.einsum("nji,nj->ni", T_cw[:, :3, :3], T_cw[:, :3, 3])
