@@ -36,6 +36,7 @@ class PatchConfig:
     det_max: float
     subpix_iterations: int
     subpix_converge_px: float
+    search_level_rule: str
 
 
 @dataclass(frozen=True)
@@ -56,6 +57,20 @@ class TrackerConfig:
     valid_radius_factor: float
     motion_decay: float
     motion_blend: float
+    coarse_enabled: bool
+    coarse_min_level: int
+    fine_subpix_min_level: int
+    recovery_coarse_factor: int
+    pose_prior: float
+    tukey_override_enabled: bool
+    tukey_override_after: int
+    tukey_override_sigma_sq_coarse: float
+    tukey_override_sigma_sq_fine: float
+    image_margin_px: float
+    scene_depth_min_points: int
+    quality_large_min_level: int
+    quality_large_min_attempted: int
+    shuffle_seed: int
 
 
 @dataclass(frozen=True)
@@ -67,14 +82,77 @@ class CaptureConfig:
 
 
 @dataclass(frozen=True)
+class InitConfig:
+    max_trails: int
+    trail_half_patch: int
+    trail_search_radius_px: int
+    trail_max_ssd: int
+    trail_backward_tolerance_px2: int
+    min_trails: int
+    auto_min_disparity_rel_focal: float
+    min_matches: int
+    min_inliers: int
+    essential_method: str
+    essential_threshold_px: float
+    ransac_confidence: float
+    ransac_seed: int
+    triangulation_max_error_px: float
+    min_parallax_deg: float
+    baseline_m: float
+    plane_ransac_iterations: int
+    plane_inlier_distance: float
+    plane_seed: int
+
+
+@dataclass(frozen=True)
+class MapperConfig:
+    kf_min_frames: int
+    kf_max_queue: int
+    kf_dist_wiggle_mult: float
+    candidate_min_dist_px: float
+    epipolar_far_depth_mult: float
+    epipolar_min_z: float
+    epipolar_min_line_length: float
+    epipolar_along_margin: float
+    epipolar_along_clip: float
+    epipolar_band_px: float
+    refind_radius_px: int
+    refind_subpix_iterations: int
+    outlier_min_good_measurements: int
+
+
+@dataclass(frozen=True)
 class EvalConfig:
     max_time_diff_s: float
     rpe_delta_s: float
 
 
 @dataclass(frozen=True)
+class GtMapConfig:
+    kf_every: int
+    max_points: int
+    min_distance_px: float
+    planarity_tol: float
+    seed: int
+
+
+@dataclass(frozen=True)
+class BundleConfig:
+    lambda_initial: float
+    lambda_decrease: float
+    lambda_increase_initial: float
+    lambda_increase_growth: float
+    max_iterations: int
+    converge_squared_update: float
+    min_tukey_sigma: float
+    local_neighbours: int
+    dense_max_cameras: int
+
+
+@dataclass(frozen=True)
 class SyntheticConfig:
     cache_dir: str
+    render_threads: int
 
 
 @dataclass(frozen=True)
@@ -83,14 +161,68 @@ class SystemConfig:
 
 
 @dataclass(frozen=True)
+class CalibrateConfig:
+    detector: str
+    subpix_window_frac: float
+    subpix_window_max_px: int
+    frame_step: int
+    min_view_change: float
+    max_candidates: int
+    max_views: int
+    min_views: int
+    loss: str
+    loss_scale_px: float
+    max_nfev: int
+    omega_search: list[float]
+    omega_search_views: int
+    omega_search_nfev: int
+    outlier_factor: float
+    outlier_min_rms_px: float
+    max_refits: int
+    coverage_grid: int
+    min_tilt_deg: float
+
+
+@dataclass(frozen=True)
+class SynthCalibrationConfig:
+    board: list[int]
+    square_m: float
+    margin_squares: float
+    views: int
+    size: list[int]
+    model: str
+    focal_rel: float
+    omega: float
+    radtan: list[float]
+    tilt_max_deg: float
+    roll_max_deg: float
+    fill: list[float]
+    border_px: float
+    supersample: int
+    black: float
+    white: float
+    background: float
+    blur_sigma_px: float
+    noise_sigma: float
+    seed: int
+    fps: float
+
+
+@dataclass(frozen=True)
 class Config:
     image: ImageConfig
     patch: PatchConfig
     tracker: TrackerConfig
     capture: CaptureConfig
+    init: InitConfig
+    mapper: MapperConfig
+    bundle: BundleConfig
     eval: EvalConfig
+    gtmap: GtMapConfig
     synthetic: SyntheticConfig
     system: SystemConfig
+    calibrate: CalibrateConfig
+    synth_calibration: SynthCalibrationConfig
 
     def replace(self, **changes: str) -> Config:
         """A copy with ``section.key`` values changed, e.g. ``cfg.replace(**{"tracker.max_patches": 500})``."""
@@ -98,7 +230,12 @@ class Config:
                                       for k, v in changes.items()])
 
 
-_CHOICES = {("system", "mode"): ("async", "sync", "realtime")}
+_CHOICES = {("calibrate", "detector"): ("sb", "classic"),
+            ("calibrate", "loss"): ("linear", "huber", "soft_l1", "cauchy"),
+            ("synth_calibration", "model"): ("fov", "radtan"),
+            ("system", "mode"): ("async", "sync", "realtime"),
+            ("patch", "search_level_rule"): ("closest", "ptam_code"),
+            ("init", "essential_method"): ("default", "magsac", "accurate", "prosac", "ransac")}
 
 
 def _section_types() -> dict[str, type]:

@@ -18,7 +18,7 @@ from .source import FrameSource
 
 
 def read_image(path: str) -> np.ndarray:
-    """Decode one image file (8-bit grey or BGR), or raise InputError naming it."""
+    """Decode one image file as 8-bit grey or BGR (deeper images keep their top byte, alpha is dropped)."""
     img = cv2.imread(path, cv2.IMREAD_ANYCOLOR)
     if img is None:
         raise InputError(f"cannot read image {path}")
@@ -45,6 +45,9 @@ class ImageSequence(FrameSource):
 
     def __len__(self) -> int:
         return self.length
+
+    def close(self) -> None:
+        """Nothing to release: each image file is opened and closed as it is read."""
 
     def __iter__(self) -> Iterator[Frame]:
         w, h = self.size

@@ -19,8 +19,9 @@ class FrameSource(ABC):
     def __iter__(self) -> Iterator[Frame]:
         """Frames in order, read lazily one per step."""
 
+    @abstractmethod
     def close(self) -> None:
-        """Release the underlying file or device (a no-op for image sequences)."""
+        """Release the underlying file or device."""
 
     def __enter__(self):
         return self

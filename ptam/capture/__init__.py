@@ -1,0 +1,15 @@
+"""Frame sources: video files, live v4l2 cameras, image folders, TUM RGB-D and EuRoC datasets."""
+
+from .dataset import find_calibration, open_dataset
+from .euroc import open_euroc
+from .folder import open_folder
+from .frame import Frame
+from .images import ImageSequence
+from .source import FrameSource
+from .sources import open_source, parse_size
+from .tum import open_tum
+from .v4l2 import CameraSource
+from .video import VideoSource
+
+__all__ = ["Frame", "FrameSource", "ImageSequence", "VideoSource", "CameraSource", "open_source", "open_dataset",
+           "open_folder", "open_tum", "open_euroc", "find_calibration", "parse_size"]

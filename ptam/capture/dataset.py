@@ -1,0 +1,44 @@
+"""``--dataset DIR``: recognise a TUM RGB-D, EuRoC or plain image-folder layout, and find its calibration."""
+
+from __future__ import annotations
+
+import os
+
+from ..config import default_config
+from ..errors import InputError
+from .euroc import find_cam0, open_euroc
+from .folder import open_folder
+from .images import ImageSequence
+from .tum import INDEX_FILE, open_tum
+
+CALIBRATION_FILE = "camera.yaml"
+
+
+def dataset_kind(directory: str) -> str:
+    """``"tum"``, ``"euroc"`` or ``"folder"``."""
+    if not os.path.isdir(directory):
+        raise InputError(f"dataset directory not found: {directory}")
+    if os.path.isfile(os.path.join(directory, INDEX_FILE)):
+        return "tum"
+    if find_cam0(directory) is not None:
+        return "euroc"
+    return "folder"
+
+
+def open_dataset(directory: str, fps: float | None = None) -> ImageSequence:
+    """The dataset in ``directory``; ``fps`` (default ``capture.default_fps``) stamps a plain folder and is
+    the fallback rate of a TUM or EuRoC sequence, which carry their own timestamps."""
+    kind = dataset_kind(directory)
+    if fps is None:
+        fps = default_config().capture.default_fps
+    if kind == "tum":
+        return open_tum(directory, fps)
+    if kind == "euroc":
+        return open_euroc(directory, fps)
+    return open_folder(directory, fps)
+
+
+def find_calibration(directory: str) -> str | None:
+    """``DIR/camera.yaml`` if the dataset ships one."""
+    path = os.path.join(directory, CALIBRATION_FILE)
+    return path if os.path.isfile(path) else None

@@ -1,0 +1,62 @@
+"""``ptam eval GT.txt EST.txt``: ATE after Sim(3) alignment, tracked fraction and scale (PTAM §7.3 compares
+trajectories up to a similarity because a monocular map has no absolute scale).
+
+The last line printed is machine-readable and its format is fixed:
+``ate_rmse_m=<float> scale=<float> matched=<int>/<int> tracked_fraction=<float> path_length_m=<float>``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import PtamError
+from ..eval import associate, ate, pairs_by_time, read_tum, rpe
+from ..eval.ate import MIN_POSES
+
+
+def path_length(xyz: np.ndarray) -> float:
+    return float(np.linalg.norm(np.diff(xyz, axis=0), axis=1).sum())
+
+
+def main(args, cfg) -> int:
+    max_dt = cfg.eval.max_time_diff_s if args.max_dt is None else args.max_dt
+    if not max_dt >= 0:
+        raise PtamError(f"--max-dt must be non-negative, got {max_dt}")
+    t_gt, T_gt = read_tum(args.groundtruth)
+    t_est, T_est = read_tum(args.estimate)
+    if len(t_gt) == 0:
+        raise PtamError(f"{args.groundtruth}: no poses")
+    order = np.argsort(t_gt, kind="stable")
+    t_gt, T_gt = t_gt[order], T_gt[order]
+    n_gt = len(t_gt)
+    length = path_length(T_gt[:, :3, 3])
+    print(f"groundtruth: {args.groundtruth}: {n_gt} poses over {t_gt[-1] - t_gt[0]:.3f} s, "
+          f"path length {length:.4f} m")
+    print(f"estimate:    {args.estimate}: {len(t_est)} poses")
+
+    ig, ie = associate(t_gt, t_est, max_dt)
+    matched = len(ig)
+    if matched < MIN_POSES:
+        raise PtamError(f"only {matched} poses of {args.estimate} are within {max_dt:g} s of a ground-truth "
+                        f"pose; need at least {MIN_POSES} (check the timestamps or --max-dt)")
+    print(f"matched {matched} of {n_gt} ground-truth poses within {max_dt:g} s")
+
+    gt_xyz, est_xyz = T_gt[ig, :3, 3], T_est[ie, :3, 3]
+    sim3 = ate(gt_xyz, est_xyz, with_scale=True)
+    print(f"ATE after Sim(3): rmse {sim3.rmse:.6g} m, median {np.median(sim3.errors):.6g} m, "
+          f"max {sim3.errors.max():.6g} m, scale {sim3.scale:.6g}")
+    if args.se3:
+        se3 = ate(gt_xyz, est_xyz, with_scale=False)
+        print(f"ATE after SE(3):  rmse {se3.rmse:.6g} m, median {np.median(se3.errors):.6g} m, "
+              f"max {se3.errors.max():.6g} m")
+    i, j = pairs_by_time(t_gt[ig], cfg.eval.rpe_delta_s)
+    if len(i):
+        rel = rpe(T_gt[ig], T_est[ie], i, j, scale=sim3.scale)
+        print(f"RPE over {cfg.eval.rpe_delta_s:g} s (Sim(3) scale): translation rmse {rel.trans_rmse:.6g} m, "
+              f"rotation rmse {rel.rot_rmse_deg:.6g} deg ({rel.pairs} pairs)")
+    else:
+        print(f"RPE over {cfg.eval.rpe_delta_s:g} s: matched poses span less than that, skipped")
+
+    print(f"ate_rmse_m={sim3.rmse:.9g} scale={sim3.scale:.9g} matched={matched}/{n_gt} "
+          f"tracked_fraction={matched / n_gt:.9g} path_length_m={length:.9g}")
+    return 0

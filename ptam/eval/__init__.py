@@ -1,0 +1,9 @@
+"""Trajectory evaluation: TUM trajectory files, timestamp association, ATE and RPE."""
+
+from .associate import associate
+from .ate import AteResult, ate
+from .rpe import RpeResult, pairs_by_frames, pairs_by_time, rpe
+from .trajectory import read_tum, write_tum
+
+__all__ = ["read_tum", "write_tum", "associate", "ate", "AteResult", "rpe", "RpeResult", "pairs_by_frames",
+           "pairs_by_time"]

@@ -1,0 +1,238 @@
+"""Frame sources on tiny inputs written by the tests: video (FFV1, lossless), image folder, TUM, EuRoC."""
+
+import os
+
+import cv2
+import numpy as np
+import pytest
+
+from ptam.capture import (
+    Frame,
+    find_calibration,
+    open_dataset,
+    open_folder,
+    open_source,
+    parse_size,
+)
+from ptam.capture.dataset import dataset_kind
+from ptam.config import default_config
+from ptam.errors import InputError
+
+W, H = 64, 48
+
+
+def colour_frames(n, seed=0):
+    rng = np.random.default_rng(seed)
+    return [rng.integers(0, 256, (H, W, 3), dtype=np.uint8) for _ in range(n)]
+
+
+def write_video(path, frames, fps=25.0):
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"FFV1"), fps, (W, H))
+    assert writer.isOpened()
+    for f in frames:
+        writer.write(f)
+    writer.release()
+
+
+@pytest.fixture(scope="module")
+def video(tmp_path_factory):
+    frames = colour_frames(10)
+    path = tmp_path_factory.mktemp("video") / "ten.avi"
+    write_video(path, frames)
+    return path, frames
+
+
+def test_video_frames_timestamps_and_pixels(video):
+    path, frames = video
+    with open_source(video=str(path)) as src:
+        assert len(src) == 10 and src.length == 10
+        assert src.size == (W, H)
+        assert src.fps == pytest.approx(25.0)
+        got = list(src)
+        assert [f.index for f in got] == list(range(10))
+        # The container's clock: frame i at i/25 s.
+        np.testing.assert_allclose([f.timestamp for f in got], np.arange(10) * 0.04, atol=1e-9)
+        for f, ref in zip(got, frames):
+            assert isinstance(f, Frame)
+            assert f.image.dtype == np.uint8 and f.image.shape == (H, W)
+            np.testing.assert_array_equal(f.colour, ref)
+            np.testing.assert_array_equal(f.image, cv2.cvtColor(ref, cv2.COLOR_BGR2GRAY))
+        # A second pass starts again from the first frame.
+        again = list(src)
+        assert len(again) == 10
+        np.testing.assert_array_equal(again[3].colour, frames[3])
+
+
+def test_truncated_and_corrupt_videos(video, tmp_path):
+    path, _ = video
+    data = path.read_bytes()
+    half = tmp_path / "half.avi"
+    half.write_bytes(data[: len(data) // 2])
+    src = open_source(video=str(half))
+    with pytest.raises(InputError, match=r"ended after \d of 10 frames"):
+        list(src)
+    src.close()
+    header = tmp_path / "header.avi"
+    header.write_bytes(data[:200])
+    with pytest.raises(InputError, match="cannot open video"):
+        open_source(video=str(header))
+    noise = tmp_path / "noise.avi"
+    noise.write_bytes(np.random.default_rng(1).integers(0, 256, 5000, dtype=np.uint8).tobytes())
+    with pytest.raises(InputError, match="cannot open video"):
+        open_source(video=str(noise))
+    with pytest.raises(InputError, match="video file not found"):
+        open_source(video=str(tmp_path / "missing.avi"))
+
+
+def test_image_folder_natural_order(tmp_path):
+    frames = colour_frames(12, seed=2)
+    for i, f in enumerate(frames):
+        cv2.imwrite(str(tmp_path / f"img{i}.png"), f)
+    (tmp_path / "notes.txt").write_text("not an image")
+    src = open_source(dataset=str(tmp_path), fps=20.0)
+    assert dataset_kind(str(tmp_path)) == "folder"
+    assert len(src) == 12 and src.size == (W, H) and src.fps == 20.0
+    got = list(src)
+    # img2 before img10: natural, not lexical, order.
+    for f, ref in zip(got, frames):
+        np.testing.assert_array_equal(f.colour, ref)
+    np.testing.assert_allclose([f.timestamp for f in got], np.arange(12) / 20.0, atol=1e-12)
+
+
+def test_image_folder_grey_default_fps_and_errors(tmp_path):
+    grey = np.arange(W * H, dtype=np.uint32).reshape(H, W).astype(np.uint8)
+    cv2.imwrite(str(tmp_path / "a.pgm"), grey)
+    cv2.imwrite(str(tmp_path / "b.pgm"), 255 - grey)
+    src = open_dataset(str(tmp_path))
+    assert src.fps == default_config().capture.default_fps
+    a, b = list(src)
+    assert a.colour is None
+    np.testing.assert_array_equal(a.image, grey)
+    np.testing.assert_array_equal(b.image, 255 - grey)
+
+    cv2.imwrite(str(tmp_path / "c.pgm"), np.zeros((H + 2, W), np.uint8))
+    with pytest.raises(InputError, match=r"c.pgm is 64x50, expected 64x48"):
+        list(open_dataset(str(tmp_path)))
+    (tmp_path / "c.pgm").write_bytes(b"garbage")
+    with pytest.raises(InputError, match=r"cannot read image .*c.pgm"):
+        list(open_dataset(str(tmp_path)))
+
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(InputError, match="no images"):
+        open_folder(str(empty), 30.0)
+    with pytest.raises(InputError, match="dataset directory not found"):
+        open_source(dataset=str(tmp_path / "nope"))
+
+
+def write_tum(root, frames, stamps):
+    (root / "rgb").mkdir()
+    lines = ["# color images", "# timestamp filename"]
+    for f, t in zip(frames, stamps):
+        name = f"rgb/{t:.6f}.png"
+        cv2.imwrite(str(root / name), f)
+        lines.append(f"{t:.6f} {name}")
+    (root / "rgb.txt").write_text("\n".join(lines) + "\n")
+
+
+def test_tum_dataset(tmp_path):
+    frames = colour_frames(5, seed=3)
+    stamps = 1305031102.175304 + np.array([0.0, 0.033, 0.066, 0.1, 0.133])
+    write_tum(tmp_path, frames, stamps)
+    (tmp_path / "camera.yaml").write_text("model: pinhole\n")
+    assert dataset_kind(str(tmp_path)) == "tum"
+    assert find_calibration(str(tmp_path)) == os.path.join(str(tmp_path), "camera.yaml")
+    src = open_source(dataset=str(tmp_path))
+    assert len(src) == 5 and src.size == (W, H)
+    assert src.fps == pytest.approx(1 / 0.033, rel=1e-6)
+    got = list(src)
+    np.testing.assert_allclose([f.timestamp for f in got], [float(f"{t:.6f}") for t in stamps], rtol=0, atol=0)
+    for f, ref in zip(got, frames):
+        np.testing.assert_array_equal(f.colour, ref)
+
+
+def test_tum_corrupt_and_missing(tmp_path):
+    write_tum(tmp_path, colour_frames(2), [1.0, 2.0])
+    text = (tmp_path / "rgb.txt").read_text()
+    (tmp_path / "rgb.txt").write_text(text + "3.0\n")
+    with pytest.raises(InputError, match=r"rgb.txt:5: expected 'timestamp path'"):
+        open_dataset(str(tmp_path))
+    (tmp_path / "rgb.txt").write_text(text + "abc rgb/x.png\n")
+    with pytest.raises(InputError, match=r"rgb.txt:5:"):
+        open_dataset(str(tmp_path))
+    (tmp_path / "rgb.txt").write_text(text + "3.0 rgb/missing.png\n")
+    with pytest.raises(InputError, match=r"image file not found: .*missing.png"):
+        open_dataset(str(tmp_path))
+    (tmp_path / "rgb.txt").write_text("# only comments\n")
+    with pytest.raises(InputError, match="lists no images"):
+        open_dataset(str(tmp_path))
+    assert find_calibration(str(tmp_path)) is None
+
+
+def test_euroc_dataset_from_root_mav0_or_cam0(tmp_path):
+    cam0 = tmp_path / "mav0" / "cam0"
+    (cam0 / "data").mkdir(parents=True)
+    rng = np.random.default_rng(4)
+    images = [rng.integers(0, 256, (H, W), dtype=np.uint8) for _ in range(4)]
+    ns = 1403636579763555584 + np.arange(4, dtype=np.int64) * 50_000_000
+    rows = ["#timestamp [ns],filename"]
+    for img, t in zip(images, ns):
+        cv2.imwrite(str(cam0 / "data" / f"{t}.png"), img)
+        rows.append(f"{t},{t}.png")
+    (cam0 / "data.csv").write_text("\n".join(rows) + "\n")
+    for d in (tmp_path, tmp_path / "mav0", cam0):
+        assert dataset_kind(str(d)) == "euroc"
+        src = open_dataset(str(d))
+        assert len(src) == 4 and src.fps == pytest.approx(20.0)
+        got = list(src)
+        assert got[0].timestamp == pytest.approx(1403636579.763555584, abs=1e-6)
+        np.testing.assert_allclose(np.diff([f.timestamp for f in got]), 0.05, atol=1e-6)
+        for f, ref in zip(got, images):
+            assert f.colour is None
+            np.testing.assert_array_equal(f.image, ref)
+    (cam0 / "data.csv").write_text("\n".join(rows) + "\n12x,a.png\n")
+    with pytest.raises(InputError, match=r"data.csv:6: expected 'timestamp_ns,filename'"):
+        open_dataset(str(tmp_path))
+
+
+def test_parse_size_and_source_choice():
+    assert parse_size("640x480") == (640, 480)
+    assert parse_size([320, 240]) == (320, 240)
+    with pytest.raises(InputError, match="WIDTHxHEIGHT"):
+        parse_size("640by480")
+    with pytest.raises(InputError, match="exactly one frame source"):
+        open_source()
+    with pytest.raises(InputError, match="exactly one frame source"):
+        open_source(video="a.avi", dataset="b")
+
+
+class ClocklessCapture:
+    """A container with no frame rate and no timestamps: 4 frames, POS_MSEC stuck at 0."""
+
+    def __init__(self, path):
+        self.left = 4
+
+    def isOpened(self):
+        return True
+
+    def get(self, prop):
+        return {cv2.CAP_PROP_FRAME_WIDTH: W, cv2.CAP_PROP_FRAME_HEIGHT: H, cv2.CAP_PROP_FPS: 0.0,
+                cv2.CAP_PROP_FRAME_COUNT: 4, cv2.CAP_PROP_POS_MSEC: 0.0}[prop]
+
+    def read(self):
+        self.left -= 1
+        return (True, np.zeros((H, W, 3), np.uint8)) if self.left >= 0 else (False, None)
+
+    def release(self):
+        pass
+
+
+def test_video_without_container_clock_falls_back_to_index_over_fps(tmp_path, monkeypatch):
+    from ptam.capture import video as video_module
+
+    monkeypatch.setattr(video_module.cv2, "VideoCapture", ClocklessCapture)
+    (tmp_path / "v.avi").write_bytes(b"stub")
+    src = open_source(video=str(tmp_path / "v.avi"))
+    fps = default_config().capture.default_fps
+    assert src.fps == fps and len(src) == 4
+    np.testing.assert_allclose([f.timestamp for f in src], np.arange(4) / fps, atol=1e-12)
