@@ -168,6 +168,22 @@ class Map:
         self._points.data["X"][idx] = _rows("X", X, len(idx), (3,), np.float64)
         self._changed()
 
+    def transform(self, T_new_old: np.ndarray, scale: float = 1.0) -> None:
+        """Move the whole map to new world coordinates X_new = T_new_old·(scale·X_old): points, normals and
+        keyframe poses together (PTAM code ``ApplyGlobalTransformationToMap`` / ``ApplyGlobalScaleToMap``)."""
+        T_new_old = np.asarray(T_new_old, dtype=np.float64)
+        R, t = T_new_old[:3, :3], T_new_old[:3, 3]
+        P = self._points
+        P.data["X"][: P.n] = scale * P.data["X"][: P.n] @ R.T + t
+        P.data["normal"][: P.n] = P.data["normal"][: P.n] @ R.T
+        T = self._kf_T_cw[: self.n_keyframes]
+        T[:, :3, 3] *= scale
+        T_old_new = np.eye(4)
+        T_old_new[:3, :3] = R.T
+        T_old_new[:3, 3] = -R.T @ t
+        T[:] = T @ T_old_new
+        self._changed()
+
     def mark_bad(self, point_indices) -> None:
         """Flag points as bad and drop all their measurements (PTAM §6.4: bad points are removed)."""
         idx = self._check_indices("point", point_indices, self._points.n)

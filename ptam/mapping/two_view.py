@@ -1,9 +1,13 @@
-"""Relative pose and structure from the initialisation trails (PTAM §6.1).
+"""Relative pose and structure from the initialisation trails (PTAM §6.1, Gauglitz §6.1).
 
-The five-point algorithm in a robust estimator (OpenCV ``findEssentialMat`` with USAC, as DESIGN.md
-chooses), pose recovery by cheirality, then linear triangulation of the inliers. Failures carry a reason
-that the system logs before it restarts initialisation: too few trails, too few inliers, or a baseline
-too small against the scene (rotation-only motion) for triangulation to mean anything.
+Both relations are estimated robustly with OpenCV's USAC: the essential matrix by the five-point algorithm
+(PTAM §6.1, DESIGN.md) and a homography (what PTAM's public code uses, because the typical first view is a
+planar desk, on which the essential matrix is ill-conditioned). Torr's GRIC picks the better model (as in
+Gauglitz §6.1). E is decomposed by cheirality (``recoverPose``); H by OpenCV's analytic decomposition, the
+solution kept that puts most matches in front of both cameras and, among near ties, explains all matches
+best as an essential matrix [t]ₓR (off-plane points break the planar two-fold ambiguity). Matches consistent
+with the chosen epipolar geometry are triangulated. Failures carry a reason that the system logs before it
+restarts initialisation: too few trails, too few inliers, or too little parallax (rotation-only motion).
 """
 
 from __future__ import annotations
@@ -13,8 +17,9 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ..geometry import se3
+from ..geometry import se3, so3
 from ..geometry.triangulation import triangulate_two_view
+from .gric import gric, sampson_sq, transfer_sq
 
 _USAC = {"default": cv2.USAC_DEFAULT, "magsac": cv2.USAC_MAGSAC, "accurate": cv2.USAC_ACCURATE,
          "prosac": cv2.USAC_PROSAC, "ransac": cv2.RANSAC}
@@ -30,6 +35,34 @@ class TwoViewResult:
     X0: np.ndarray           # (K, 3) inlier points in the first camera's frame
     inliers: np.ndarray      # (N,) bool over the input matches
     median_parallax_deg: float
+    model: str               # "E" or "H", the GRIC choice
+
+
+def _triangulate(T: np.ndarray, r0: np.ndarray, r1: np.ndarray):
+    X0 = triangulate_two_view(np.eye(4), T, r0, r1)
+    X1 = se3.transform(T, X0)
+    return X0, X1
+
+
+def _from_homography(H: np.ndarray, r0: np.ndarray, r1: np.ndarray, inl: np.ndarray, sigma: float, cap: float):
+    """The decomposition of H with most points in front of both cameras, ties broken by the E error."""
+    _, Rs, ts, _ = cv2.decomposeHomographyMat(H, np.eye(3))
+    scored = []
+    for R, t in zip(Rs, ts):
+        t = t.ravel()
+        if np.linalg.norm(t) < 1e-12:
+            continue
+        T = se3.from_Rt(R, t / np.linalg.norm(t))
+        X0, X1 = _triangulate(T, r0[inl], r1[inl])
+        front = int(((X0[:, 2] > 0) & (X1[:, 2] > 0)).sum())
+        E = so3.hat(T[:3, 3]) @ T[:3, :3]
+        err = float(np.minimum(sampson_sq(E, r0, r1) / sigma ** 2, cap).sum())
+        scored.append((front, err, T))
+    if not scored:
+        return None
+    best_front = max(s[0] for s in scored)
+    near = [s for s in scored if s[0] >= 0.9 * best_front]
+    return min(near, key=lambda s: s[1])[2]
 
 
 def estimate_two_view(camera, xy0: np.ndarray, xy1: np.ndarray, init_cfg) -> TwoViewResult:
@@ -38,23 +71,38 @@ def estimate_two_view(camera, xy0: np.ndarray, xy1: np.ndarray, init_cfg) -> Two
     n = len(xy0)
     if n < c.min_matches:
         raise InitFailure(f"too few trails ({n} < {c.min_matches})")
-    r0 = camera.unproject(np.asarray(xy0, np.float64))
-    r1 = camera.unproject(np.asarray(xy1, np.float64))
+    xy0 = np.asarray(xy0, np.float64)
+    xy1 = np.asarray(xy1, np.float64)
+    r0 = camera.unproject(xy0)
+    r1 = camera.unproject(xy1)
     f = 0.5 * (camera.fx + camera.fy)
+    sigma = c.essential_threshold_px / f
+    method = _USAC[c.essential_method]
     cv2.setRNGSeed(c.ransac_seed)  # deterministic runs (sync-mode tests compare trajectories bit for bit)
-    E, mask = cv2.findEssentialMat(r0, r1, np.eye(3), method=_USAC[c.essential_method],
-                                   prob=c.ransac_confidence, threshold=c.essential_threshold_px / f)
-    if E is None or E.shape != (3, 3):
-        raise InitFailure("no essential matrix found")
-    mask = mask.ravel().astype(bool)
-    n_in, R, t, mask_pose = cv2.recoverPose(E, r0, r1, np.eye(3), mask=mask.astype(np.uint8).copy())
-    inl = mask_pose.ravel().astype(bool)
+    E, mask_e = cv2.findEssentialMat(r0, r1, np.eye(3), method=method, prob=c.ransac_confidence, threshold=sigma)
+    H, mask_h = cv2.findHomography(r0, r1, method, sigma, maxIters=10000, confidence=c.ransac_confidence)
+    cands = {}
+    if E is not None and E.shape == (3, 3):
+        cands["E"] = gric(sampson_sq(E, r0, r1), sigma, "E", c.gric_lambda3)
+    if H is not None and H.shape == (3, 3):
+        cands["H"] = gric(transfer_sq(H, r0, r1), sigma, "H", c.gric_lambda3)
+    if not cands:
+        raise InitFailure("neither an essential matrix nor a homography fits the trails")
+    model = min(cands, key=cands.get)
+    cap = c.gric_lambda3 * 2.0
+    if model == "E":
+        _, R, t, _ = cv2.recoverPose(E, r0, r1, np.eye(3), mask=mask_e.astype(np.uint8).copy())
+        T = se3.from_Rt(R, t.ravel())
+    else:
+        T = _from_homography(H, r0, r1, mask_h.ravel().astype(bool), sigma, cap)
+        if T is None:
+            raise InitFailure("the homography has no usable decomposition (no translation)")
+    # Inliers of the chosen epipolar geometry, then triangulation with cheirality and pixel checks.
+    Eb = so3.hat(T[:3, 3]) @ T[:3, :3]
+    inl = sampson_sq(Eb, r0, r1) < (c.inlier_sigmas * sigma) ** 2
     if inl.sum() < c.min_inliers:
-        raise InitFailure(f"too few inliers ({int(inl.sum())} < {c.min_inliers})")
-    T = se3.from_Rt(R, t.ravel())
-    X0 = triangulate_two_view(np.eye(4), T, r0[inl], r1[inl])
-    X1 = se3.transform(T, X0)
-    # Reprojection and cheirality check in pixels, as the five-point inlier test was made on rays.
+        raise InitFailure(f"too few inliers ({int(inl.sum())} < {c.min_inliers}, model {model})")
+    X0, X1 = _triangulate(T, r0[inl], r1[inl])
     e0 = np.linalg.norm(camera.project(X0) - xy0[inl], axis=1)
     e1 = np.linalg.norm(camera.project(X1) - xy1[inl], axis=1)
     good = (X0[:, 2] > 0) & (X1[:, 2] > 0) & (e0 < c.triangulation_max_error_px) & (e1 < c.triangulation_max_error_px)
@@ -63,14 +111,13 @@ def estimate_two_view(camera, xy0: np.ndarray, xy1: np.ndarray, init_cfg) -> Two
     inl[idx[good]] = True
     X0 = X0[good]
     if len(X0) < c.min_inliers:
-        raise InitFailure(f"too few triangulated inliers ({len(X0)} < {c.min_inliers})")
-    # Parallax: angle between the two viewing rays of each point.
+        raise InitFailure(f"too few triangulated inliers ({len(X0)} < {c.min_inliers}, model {model})")
     c1 = -T[:3, :3].T @ T[:3, 3]
     a = X0 / np.linalg.norm(X0, axis=1, keepdims=True)
     b = X0 - c1
     b /= np.linalg.norm(b, axis=1, keepdims=True)
     parallax = float(np.degrees(np.median(np.arccos(np.clip((a * b).sum(axis=1), -1.0, 1.0)))))
     if parallax < c.min_parallax_deg:
-        raise InitFailure(f"baseline too small for the scene depth (median parallax {parallax:.2f} deg < "
-                          f"{c.min_parallax_deg} deg): rotation-only motion?")
-    return TwoViewResult(T, X0, inl, parallax)
+        raise InitFailure(f"too little parallax (median {parallax:.2f} deg < {c.min_parallax_deg} deg, model "
+                          f"{model}): the camera rotated more than it translated")
+    return TwoViewResult(T, X0, inl, parallax, model)

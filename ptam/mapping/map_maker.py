@@ -1,0 +1,279 @@
+"""The mapping thread's work (PTAM §6, Fig. 2): keyframe integration, new points, bundle adjustment and
+data-association refinement, in PTAM's order of priority.
+
+``MapMaker`` holds the map and does one unit of work per :meth:`step`; ``ptam.system`` runs it in its own
+thread (async) or to idle after each keyframe (sync). Only this object mutates the ``Map``; after every
+change it publishes a fresh immutable :class:`MapSnapshot` by swapping one reference, which the tracker reads
+without a lock. Keyframes arrive through a deque (thread-safe appends/pops in CPython); a queued keyframe
+aborts a running bundle adjustment (PTAM §6.3).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..image.pyramid import Pyramid, zero_to_level
+from ..image.shi_tomasi import candidates
+from ..map.keyframe import KeyFrame
+from ..map.map import SRC_EPIPOLAR, SRC_REFIND, SRC_ROOT, SRC_TRACKER, Map
+from ..map.snapshot import MapSnapshot
+from ..tracking.patch_finder import PatchFinder
+from .bundle import Bundle
+from .epipolar import epipolar_matches, unit_plane_corners
+from .local_ba import local_sets
+from .refind import refind_points
+
+log = logging.getLogger("ptam.mapper")
+
+# PTAM code (AddKeyFrameFromTopOfQueue): new points are sought at the coarsest level first, then fine to coarse.
+NEW_POINT_LEVEL_ORDER = (3, 0, 1, 2)
+
+
+@dataclass(frozen=True)
+class KeyframeRequest:
+    """A frame the tracker hands over as a new keyframe, with its own measurements (PTAM §6.2)."""
+
+    pyramid: Pyramid
+    T_cw: np.ndarray
+    timestamp: float
+    point_ids: np.ndarray
+    xy: np.ndarray
+    level: np.ndarray
+    depth_mean: float
+    depth_sigma: float
+
+
+class MapMaker:
+    def __init__(self, camera, cfg, map_: Map | None = None):
+        self.camera = camera
+        self.cfg = cfg
+        self.bundle = Bundle(camera, cfg.bundle)
+        self.finder = PatchFinder(cfg.patch)
+        self.map = map_ if map_ is not None else Map()
+        self.queue: deque[KeyframeRequest] = deque()
+        self.snapshot: MapSnapshot | None = None
+        self._plane_corners: dict[tuple[int, int], np.ndarray] = {}
+        self._never_retry: dict[int, np.ndarray] = {}  # keyframe -> bool per point: do not search again
+        self._failure_queue: list[tuple[int, int]] = []
+        self._new_points: list[np.ndarray] = []
+        self.recent_converged = True
+        self.full_converged = True
+        # Keyframe spacing: the initial baseline over the first keyframe's mean depth (PTAM code
+        # mdWiggleScaleDepthNormalized).
+        self.wiggle_depth_normalised = 0.0
+        self.stats = {"local_ba": [], "global_ba": [], "keyframes_added": 0}
+        self.ready = False  # set once a usable map exists; the mapper thread idles until then
+        if len(self.map.keyframes):
+            self.ready = True
+            self.wiggle_depth_normalised = cfg.init.baseline_m / self.map.keyframes[0].scene_depth_mean
+            self.publish()
+
+    # -- interface for the tracker's thread -----------------------------------------------------------------
+    @property
+    def initialised(self) -> bool:
+        return self.ready
+
+    def queue_size(self) -> int:
+        return len(self.queue)
+
+    def need_new_keyframe(self, nearest_distance: float, depth_mean: float) -> bool:
+        """PTAM code ``MapMaker::NeedNewKeyFrame``: far enough from the nearest keyframe, relative to depth."""
+        if not depth_mean or not np.isfinite(nearest_distance):
+            return False
+        return nearest_distance / depth_mean > self.cfg.mapper.kf_dist_wiggle_mult * self.wiggle_depth_normalised
+
+    def add_keyframe(self, request: KeyframeRequest) -> None:
+        self.queue.append(request)
+
+    def publish(self) -> None:
+        self.snapshot = self.map.snapshot()
+
+    def _abort(self) -> bool:
+        return len(self.queue) > 0
+
+    # -- one unit of work -------------------------------------------------------------------------------------
+    def step(self) -> bool:
+        """Do the most pressing job (PTAM's MapMaker::run order); False when there was nothing to do."""
+        if not self.initialised:
+            return False
+        if self.queue:
+            self._integrate(self.queue.popleft())
+        elif not self.recent_converged:
+            self.bundle_adjust(recent=True)
+        elif self._new_points:
+            self._refind_newly_made()
+        elif not self.full_converged:
+            self.bundle_adjust(recent=False)
+        elif self._failure_queue:
+            self._refind_from_failure_queue()
+        else:
+            return False
+        self.publish()
+        return True
+
+    def run_until_idle(self, max_steps: int = 10_000) -> None:
+        for _ in range(max_steps):
+            if not self.step():
+                return
+
+    # -- keyframe integration (PTAM §6.2) ---------------------------------------------------------------
+    def _new_keyframe(self, pyramid: Pyramid, T_cw: np.ndarray, timestamp: float, depth_mean: float,
+                      depth_sigma: float) -> int:
+        kf = KeyFrame(self.map.next_keyframe_id, pyramid, float(depth_mean), float(depth_sigma), float(timestamp))
+        return self.map.add_keyframe(kf, T_cw)
+
+    def _integrate(self, r: KeyframeRequest) -> None:
+        k = self._new_keyframe(r.pyramid, r.T_cw, r.timestamp, r.depth_mean, r.depth_sigma)
+        good = ~self.map.bad[r.point_ids]
+        self.map.add_measurements(k, r.point_ids[good], r.xy[good], r.level[good], SRC_TRACKER)
+        self._refind_in_keyframe(k, self._unmeasured_points(k))
+        for level in NEW_POINT_LEVEL_ORDER:
+            self.add_some_map_points(k, level)
+        self.recent_converged = self.full_converged = False
+        self.stats["keyframes_added"] += 1
+
+    def _unmeasured_points(self, k: int) -> np.ndarray:
+        measured = np.zeros(self.map.n_points_total, bool)
+        measured[self.map.meas_pt[self.map.meas_kf == k]] = True
+        return np.flatnonzero(~measured & ~self.map.bad)
+
+    def closest_keyframe(self, k: int) -> int:
+        c = self.map.camera_centres
+        d = np.linalg.norm(c - c[k], axis=1)
+        d[k] = np.inf
+        return int(np.argmin(d))
+
+    def add_some_map_points(self, k: int, level: int) -> int:
+        """PTAM code ``AddSomeMapPoints``: thinned candidates of keyframe k, epipolar search in the closest."""
+        m = self.map
+        kf = m.keyframes[k]
+        img = kf.pyramid.levels[level]
+        xy, _ = candidates(img, self.cfg.image.fast_thresholds[level], self.cfg.image)
+        busy = (m.meas_kf == k) & (m.meas_level == level)
+        if busy.any() and len(xy):
+            b = np.rint(zero_to_level(m.meas_xy[busy], level))
+            d2 = ((xy[:, None, :] - b[None, :, :]) ** 2).sum(axis=2)
+            xy = xy[d2.min(axis=1) >= self.cfg.mapper.candidate_min_dist_px ** 2]
+        if len(xy) == 0:
+            return 0
+        t = self.closest_keyframe(k)
+        key = (t, level)
+        if key not in self._plane_corners:
+            self._plane_corners[key] = unit_plane_corners(self.camera, m.keyframes[t].pyramid, level)
+        T = m.kf_T_cw
+        res = epipolar_matches(self.camera, T[k], T[t], kf.pyramid, m.keyframes[t].pyramid, kf.scene_depth_mean,
+                               kf.scene_depth_sigma, level, xy, self._plane_corners[key], self.cfg)
+        n = len(res.X)
+        if n == 0:
+            return 0
+        # Patch normal facing the source camera, parallel to its image plane (PTAM §6.5).
+        normal = np.broadcast_to(T[k][2, :3] * -1.0, (n, 3))
+        ids = m.add_points(res.X, normal, k, level, res.src_level_xy)
+        m.add_measurements(k, ids, res.src_xy, level, SRC_ROOT)
+        m.add_measurements(t, ids, res.tgt_xy, level, SRC_EPIPOLAR)
+        self._new_points.append(ids)
+        return n
+
+    # -- data-association refinement (PTAM §6.4) --------------------------------------------------------
+    def _never(self, k: int) -> np.ndarray:
+        n = self.map.n_points_total
+        a = self._never_retry.get(k)
+        if a is None or len(a) < n:
+            b = np.zeros(max(n, 2 * (0 if a is None else len(a))), bool)
+            if a is not None:
+                b[: len(a)] = a
+            self._never_retry[k] = a = b
+        return a
+
+    def _refind_in_keyframe(self, k: int, pts: np.ndarray, source=SRC_REFIND) -> int:
+        never = self._never(k)
+        pts = np.asarray(pts, dtype=np.int64)
+        pts = pts[~never[pts]]
+        if len(pts) == 0:
+            return 0
+        m = self.map
+        r = refind_points(self.camera, self.cfg, self.finder, m.kf_T_cw, m.kf_images, m.keyframes[k].pyramid,
+                          m.kf_T_cw[k], m.X[pts], m.normal[pts], m.source_kf[pts], m.source_level[pts],
+                          m.source_xy[pts])
+        never[pts[~r.found]] = True
+        if r.found.any():
+            m.add_measurements(k, pts[r.found], r.xy[r.found], r.level[r.found], source)
+        return int(r.found.sum())
+
+    def _refind_newly_made(self) -> None:
+        pts = self._new_points.pop(0)
+        pts = pts[~self.map.bad[pts]]
+        for k in range(self.map.n_keyframes):
+            if self._abort():
+                return
+            measured = np.zeros(self.map.n_points_total, bool)
+            measured[self.map.meas_pt[self.map.meas_kf == k]] = True
+            self._refind_in_keyframe(k, pts[~measured[pts]])
+
+    def _refind_from_failure_queue(self) -> None:
+        batch, self._failure_queue = self._failure_queue, []
+        by_kf: dict[int, list[int]] = {}
+        for k, p in batch:
+            if not self.map.bad[p]:
+                by_kf.setdefault(k, []).append(p)
+        for k, pts in by_kf.items():
+            self._refind_in_keyframe(k, np.asarray(pts, np.int64))
+
+    # -- bundle adjustment (PTAM §6.3) ------------------------------------------------------------------
+    def bundle_adjust(self, recent: bool) -> None:
+        m = self.map
+        n = m.n_keyframes
+        fixed = np.zeros(n, bool)
+        fixed[0] = True
+        if recent and n < self.cfg.mapper.local_ba_min_keyframes:
+            # Small maps: global adjustment covers everything (PTAM code).
+            self.recent_converged = True
+            return
+        if recent:
+            sets = local_sets(m.kf_T_cw, m.meas_kf, m.meas_pt, m.n_points_total, n - 1,
+                              self.cfg.bundle.local_neighbours, fixed)
+            fixed_poses = ~sets.adjust
+            adjust_points = sets.points
+        else:
+            fixed_poses = fixed
+            adjust_points = ~m.bad
+        res = self.bundle.adjust(m.kf_T_cw, m.X, m.meas_kf, m.meas_pt, m.meas_xy, m.meas_level, fixed_poses,
+                                 adjust_points, abort=self._abort)
+        self.stats["local_ba" if recent else "global_ba"].append(1e3 * res.phase_seconds.get("total", 0.0))
+        if res.failed:
+            log.warning("bundle adjustment could not factorise the reduced system; the map is probably corrupt")
+            self.recent_converged = self.full_converged = True
+            return
+        if res.accepted > 0:
+            m.set_poses(np.arange(n), res.poses)
+            m.set_points(np.arange(m.n_points_total), res.points)
+            self.full_converged = False
+            if recent:
+                self.recent_converged = False
+        if len(res.outliers):
+            self._handle_outliers(res.outliers)
+        if res.converged:
+            self.recent_converged = True
+            if not recent:
+                self.full_converged = True
+
+    def _handle_outliers(self, outliers: np.ndarray) -> None:
+        """PTAM code ``BundleAdjust``: a point is bad when its root measurement or one of its last two good
+        ones is an outlier; other outliers are dropped, tracker/epipolar ones queued for a second chance."""
+        m = self.map
+        kf, pt, src = m.meas_kf[outliers], m.meas_pt[outliers], m.meas_source[outliers]
+        count = np.bincount(m.meas_pt, minlength=m.n_points_total)
+        bad = (count[pt] <= self.cfg.mapper.outlier_min_good_measurements) | (src == SRC_ROOT)
+        retry = ~bad & ((src == SRC_TRACKER) | (src == SRC_EPIPOLAR))
+        self._failure_queue.extend(zip(kf[retry].tolist(), pt[retry].tolist()))
+        for k, p in zip(kf[~bad & ~retry].tolist(), pt[~bad & ~retry].tolist()):
+            self._never(k)[p] = True
+        mask = np.zeros(m.n_measurements, bool)
+        mask[outliers[~bad]] = True
+        m.remove_measurements(mask)
+        if bad.any():
+            m.mark_bad(np.unique(pt[bad]))

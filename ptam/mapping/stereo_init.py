@@ -1,0 +1,75 @@
+"""Building the initial map from two keyframes and their trails (PTAM §6.1, code ``MapMaker::InitFromStereo``).
+
+Five-point relative pose (``two_view``), its translation scaled to the assumed 10 cm baseline, the inlier
+trails triangulated into level-0 points whose source is the first keyframe, both keyframes adjusted with
+the first fixed, their scene depths measured, new points added by epipolar search at every level, the
+whole map adjusted to convergence, and finally the dominant plane moved to z = 0.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..map.keyframe import KeyFrame
+from ..map.map import SRC_ROOT, SRC_TRACKER
+from .map_maker import NEW_POINT_LEVEL_ORDER, MapMaker
+from .plane import fit_dominant_plane, plane_aligner
+from .two_view import InitFailure, estimate_two_view
+
+
+def init_from_stereo(mm: MapMaker, first, second, xy0: np.ndarray, xy1: np.ndarray) -> np.ndarray:
+    """``first``/``second``: (pyramid, timestamp). Returns the second keyframe's pose T_cw in the new map.
+
+    Raises :class:`InitFailure` with the reason; the mapper's map is left empty then.
+    """
+    c = mm.cfg.init
+    xy0 = np.asarray(xy0, np.float64)
+    xy1 = np.asarray(xy1, np.float64)
+    tv = estimate_two_view(mm.camera, xy0, xy1, c)
+    T1 = tv.T_c1c0.copy()
+    T1[:3, 3] *= c.baseline_m / np.linalg.norm(T1[:3, 3])
+    X = tv.X0 * (c.baseline_m / np.linalg.norm(tv.T_c1c0[:3, 3]))
+    a, b = xy0[tv.inliers], xy1[tv.inliers]
+    n = len(X)
+    poses = np.stack([np.eye(4), T1])
+    meas_kf = np.repeat([0, 1], n)
+    meas_pt = np.tile(np.arange(n), 2)
+    res = mm.bundle.adjust(poses, X, meas_kf, meas_pt, np.concatenate([a, b]), np.zeros(2 * n, np.int64),
+                           np.array([True, False]))
+    if res.failed:
+        raise InitFailure("bundle adjustment of the initial pair failed")
+    bad = np.zeros(n, bool)
+    bad[meas_pt[res.outliers]] = True
+    keep = ~bad
+    if keep.sum() < c.min_inliers:
+        raise InitFailure(f"too few points survive bundle adjustment ({int(keep.sum())} < {c.min_inliers})")
+    poses, X, a, b = res.poses, res.points[keep], a[keep], b[keep]
+
+    depths = [(X @ T[2, :3] + T[2, 3]) for T in poses]
+    m = mm.map
+    for i, ((pyr, ts), T, z) in enumerate(zip((first, second), poses, depths)):
+        mean, sigma = KeyFrame.depth_stats(z)
+        m.add_keyframe(KeyFrame(i, pyr, mean, sigma, float(ts)), T)
+    k = len(X)
+    ids = m.add_points(X, np.broadcast_to([0.0, 0.0, -1.0], (k, 3)), 0, 0, a)
+    m.add_measurements(0, ids, a, 0, SRC_ROOT)
+    m.add_measurements(1, ids, b, 0, SRC_TRACKER)
+    mm.wiggle_depth_normalised = c.baseline_m / m.keyframes[0].scene_depth_mean
+
+    for level in NEW_POINT_LEVEL_ORDER:
+        mm.add_some_map_points(1, level)
+    mm.recent_converged = mm.full_converged = False
+    for _ in range(mm.cfg.init.max_ba_rounds):
+        mm.bundle_adjust(recent=False)
+        if mm.full_converged:
+            break
+
+    good = ~m.bad
+    plane = fit_dominant_plane(m.X[good], c.plane_inlier_distance, c.plane_ransac_iterations, c.plane_seed)
+    if plane is not None:
+        centre0 = np.zeros(3)
+        m.transform(plane_aligner(plane, centre0))
+    mm.recent_converged = True
+    mm.publish()
+    mm.ready = True
+    return m.kf_T_cw[1].copy()

@@ -1,0 +1,235 @@
+"""The ``System`` facade: tracker and mapper as two threads (PTAM §2, DESIGN.md Concurrency).
+
+The tracker runs in the caller's thread, one :meth:`System.process` call per frame; the mapper runs in its
+own thread (``async``, the default) or, in ``sync`` mode, to idle inside ``process`` right after a keyframe is
+handed over, which makes runs deterministic. The tracker reads ``mapper.snapshot`` (an immutable
+``MapSnapshot`` swapped atomically by the mapper) and takes no lock. An exception in the mapper thread is
+re-raised in the caller at the next frame or at :meth:`close`.
+
+Before a map exists the system initialises by itself (PTAM §6.1): trails start at the first frame and the
+second keyframe is taken when their median disparity passes ``init.auto_min_disparity_rel_focal`` × f, or at
+fixed frames (``init_frames``). A failure is logged with its reason and initialisation restarts.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .geometry import se3
+from .image.pyramid import Pyramid
+from .mapping.map_maker import KeyframeRequest, MapMaker
+from .mapping.stereo_init import init_from_stereo
+from .mapping.two_view import InitFailure
+from .tracking.quality import GOOD
+from .tracking.tracker import Tracker
+from .tracking.trails import TrailTracker
+
+log = logging.getLogger("ptam")
+
+INITIALISING, TRACKING, LOST = "initialising", "tracking", "lost"
+
+
+@dataclass
+class FrameOutcome:
+    """What happened to one frame: the state, the pose if tracked (T_cw), and the tracker's result if any."""
+
+    index: int
+    timestamp: float
+    state: str
+    T_cw: np.ndarray | None
+    result: object = None
+    keyframe_added: bool = False
+    process_ms: float = 0.0
+
+
+@dataclass
+class RunStats:
+    frames: int = 0
+    tracked: int = 0
+    lost_events: int = 0
+    keyframes_requested: int = 0
+    init_attempts: int = 0
+    init_failures: list = field(default_factory=list)
+    track_ms: list = field(default_factory=list)
+
+
+class System:
+    def __init__(self, camera, cfg, mode: str | None = None, init_frames: tuple[int, int] | None = None):
+        self.camera = camera
+        self.cfg = cfg
+        self.mode = mode or cfg.system.mode
+        self.init_frames = init_frames
+        self.tracker = Tracker(camera, cfg)
+        self.mapper = MapMaker(camera, cfg)
+        self.trails = TrailTracker(cfg.init, cfg.image)
+        self.state = INITIALISING
+        self.trajectory: list[tuple[float, np.ndarray]] = []  # (timestamp, T_wc) per tracked frame
+        self.stats = RunStats()
+        self._first = None            # (pyramid, timestamp, index) of the first stereo keyframe
+        self._init_frames: list = []  # frames seen since the first keyframe, tracked once a map exists
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._wake = threading.Event()
+        self._mapper_error: BaseException | None = None
+        self.last_failure: str | None = None
+
+    # -- threads -------------------------------------------------------------------------------------------
+    def start(self) -> System:
+        if self.mode != "sync" and self._thread is None:
+            self._thread = threading.Thread(target=self._mapper_loop, name="ptam-mapper", daemon=True)
+            self._thread.start()
+        return self
+
+    def _mapper_loop(self) -> None:
+        try:
+            while not self._stop.is_set():
+                if not self.mapper.step():
+                    self._wake.wait(self.cfg.system.mapper_idle_wait_s)
+                    self._wake.clear()
+        except BaseException as e:  # re-raised in the tracker's thread
+            self._mapper_error = e
+
+    def _check_mapper(self) -> None:
+        if self._mapper_error is not None:
+            err, self._mapper_error = self._mapper_error, None
+            raise err
+
+    def close(self) -> None:
+        self._stop.set()
+        self._wake.set()
+        if self._thread is not None:
+            self._thread.join()
+            self._thread = None
+        self._check_mapper()
+
+    def __enter__(self) -> System:
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # -- per frame -----------------------------------------------------------------------------------------
+    def process(self, frame) -> FrameOutcome:
+        self._check_mapper()
+        t0 = time.perf_counter()
+        self.stats.frames += 1
+        if not self.mapper.initialised:
+            out = self._initialise(frame)
+        else:
+            out = self._track(frame)
+        out.process_ms = 1e3 * (time.perf_counter() - t0)
+        return out
+
+    def _track(self, frame, record: bool = True) -> FrameOutcome:
+        res = self.tracker.track(frame, self.mapper.snapshot)
+        self.stats.track_ms.append(res.timings.total)
+        was_lost = self.state == LOST
+        self.state = LOST if res.lost else TRACKING
+        if self.state == LOST and not was_lost:
+            self.stats.lost_events += 1
+        T = res.T_cw if res.tracked else None
+        if T is not None and record:
+            self.trajectory.append((res.timestamp, se3.inv(T)))
+            self.stats.tracked += 1
+        added = record and self._maybe_add_keyframe(res)
+        return FrameOutcome(res.frame_index, res.timestamp, self.state, T, res, added)
+
+    def _maybe_add_keyframe(self, res) -> bool:
+        """PTAM §6.2 (code ``Tracker::NeedNewKeyFrame`` + ``MapMaker::NeedNewKeyFrame``)."""
+        m = self.cfg.mapper
+        kf = res.keyframe
+        if not (res.quality == GOOD and kf.frames_since_keyframe > m.kf_min_frames
+                and self.mapper.queue_size() < m.kf_max_queue
+                and self.mapper.need_new_keyframe(kf.nearest_keyframe_distance, kf.mean_scene_depth)):
+            return False
+        meas = res.measurements
+        f = meas.found
+        self.mapper.add_keyframe(KeyframeRequest(res.pyramid, res.T_cw.copy(), res.timestamp, meas.point_ids[f],
+                                                 meas.xy[f], meas.level[f], kf.mean_scene_depth,
+                                                 kf.scene_depth_sigma))
+        self.tracker.keyframe_added()
+        self.stats.keyframes_requested += 1
+        if self.mode == "sync":
+            self.mapper.run_until_idle()
+        else:
+            self._wake.set()
+        return True
+
+    # -- initialisation (PTAM §6.1) ----------------------------------------------------------------------
+    def _restart_init(self, pyramid, frame, reason: str | None) -> None:
+        if reason:
+            log.info("initialisation restarts: %s", reason)
+            self.last_failure = reason
+            self.stats.init_failures.append(reason)
+        n = self.trails.start(pyramid)
+        self._first = (pyramid, float(frame.timestamp), int(frame.index))
+        self._init_frames = []
+        if n < self.cfg.init.min_trails:
+            self.last_failure = f"too few corners to start trails ({n} < {self.cfg.init.min_trails})"
+            self._first = None
+
+    def _initialise(self, frame) -> FrameOutcome:
+        c = self.cfg.init
+        pyramid = Pyramid.build(frame.image, self.cfg.image)
+        idle = FrameOutcome(int(frame.index), float(frame.timestamp), INITIALISING, None)
+        fixed = self.init_frames
+        if self._first is None:
+            if fixed is None or frame.index == fixed[0]:
+                self._restart_init(pyramid, frame, None)
+            return idle
+        n = self.trails.advance(pyramid)
+        if n < c.min_trails:
+            if fixed is None:
+                self._restart_init(pyramid, frame, f"too few trails survive ({n} < {c.min_trails})")
+            else:
+                self.last_failure = f"too few trails survive to frame {frame.index} ({n} < {c.min_trails})"
+                self._first = None
+            return idle
+        self._init_frames.append(frame)
+        f = 0.5 * (self.camera.fx + self.camera.fy)
+        if fixed is not None:
+            if frame.index < fixed[1]:
+                return idle
+        elif self.trails.median_disparity() < c.auto_min_disparity_rel_focal * f:
+            return idle
+        self.stats.init_attempts += 1
+        first = self._first
+        try:
+            T = init_from_stereo(self.mapper, first[:2], (pyramid, float(frame.timestamp)),
+                                 self.trails.start_xy, self.trails.current_xy)
+        except InitFailure as e:
+            self.mapper = MapMaker(self.camera, self.cfg)
+            if fixed is None:
+                self._restart_init(pyramid, frame, str(e))
+            else:
+                self.last_failure = str(e)
+                self.stats.init_failures.append(str(e))
+                self._first = None
+            return idle
+        log.info("map initialised from frames %d and %d: %d points", first[2], frame.index,
+                 self.mapper.snapshot.n_points)
+        self._after_init(first, frame, T)
+        return FrameOutcome(int(frame.index), float(frame.timestamp), TRACKING, T, None, True)
+
+    def _after_init(self, first, frame, T_second) -> None:
+        """Record both keyframes' poses and, for frames in between, track them against the new map."""
+        T0 = self.mapper.map.kf_T_cw[0].copy()
+        self.trajectory.append((first[1], se3.inv(T0)))
+        self.stats.tracked += 1
+        if self.cfg.init.track_frames_between:
+            self.tracker.set_pose(T0)
+            for f in self._init_frames[:-1]:
+                self._track(f)
+        self.trajectory.append((float(frame.timestamp), se3.inv(T_second)))
+        self.stats.tracked += 1
+        self._init_frames = []
+        self.tracker.reset()
+        self.tracker.set_pose(T_second)
+        self.state = TRACKING
+        if self.mode != "sync":
+            self._wake.set()
