@@ -32,6 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--fps", type=float, help="frame rate for image folders / requested camera rate")
     run.add_argument("--size", metavar="WxH", help="requested live camera size, e.g. 640x480")
     run.add_argument("--mode", choices=["sync", "async", "realtime"], help="threading mode (default: async)")
+    run.add_argument("--init-frames", metavar="A,B", help="take the stereo-initialisation keyframes at frames A and B")
     run.add_argument("--trajectory", metavar="FILE", help="write the camera trajectory (TUM format)")
     run.add_argument("--keyframes", metavar="FILE", help="write keyframe poses (TUM format)")
     run.add_argument("--no-viewer", action="store_true", help="do not open a viewer")
@@ -58,13 +59,14 @@ def build_parser() -> argparse.ArgumentParser:
 
     cal = sub.add_parser("calibrate", help="fit a camera model to chessboard views, write camera.yaml")
     cal_src = cal.add_mutually_exclusive_group()
-    cal_src.add_argument("--video", metavar="FILE")
-    cal_src.add_argument("--camera", metavar="v4l2[:DEVICE]")
-    cal_src.add_argument("--images", metavar="DIR")
+    cal_src.add_argument("--video", metavar="FILE", help="a video of the board")
+    cal_src.add_argument("--camera", metavar="v4l2[:DEVICE]", help="live camera; Ctrl-C ends the capture")
+    cal_src.add_argument("--images", metavar="DIR", help="a folder of images (or a TUM / EuRoC dataset)")
     cal.add_argument("--board", default="9x6", help="inner corners, e.g. 9x6")
     cal.add_argument("--square", type=float, default=0.04, help="square size in metres")
-    cal.add_argument("--model", choices=["fov", "radtan", "pinhole"], default="fov")
-    cal.add_argument("-o", "--output", default="camera.yaml")
+    cal.add_argument("--model", choices=["fov", "radtan", "pinhole"], default="fov",
+                     help="fov = PTAM's ATAN model (default), radtan = OpenCV k1 k2 p1 p2 k3, pinhole")
+    cal.add_argument("-o", "--output", default="camera.yaml", help="camera file to write (default: camera.yaml)")
     _add_config_args(cal)
     return parser
 
@@ -85,6 +87,15 @@ def _dispatch(args) -> int:
     if args.command == "eval":
         from .commands.evaluate import main as eval_main
         return eval_main(args, cfg)
+    if args.command == "synth":
+        from .commands.synth import main as synth_main
+        return synth_main(args, cfg)
+    if args.command == "bench":
+        from .commands.bench import main as bench_main
+        return bench_main(args, cfg)
+    if args.command == "calibrate":
+        from .commands.calibrate import main as calibrate_main
+        return calibrate_main(args, cfg)
     return _not_implemented(args.command)(args)
 
 
