@@ -96,8 +96,12 @@ class InitConfig:
     essential_threshold_px: float
     ransac_confidence: float
     ransac_seed: int
+    gric_lambda3: float
+    inlier_sigmas: float
     triangulation_max_error_px: float
     min_parallax_deg: float
+    max_ba_rounds: int
+    track_frames_between: bool
     baseline_m: float
     plane_ransac_iterations: int
     plane_inlier_distance: float
@@ -117,7 +121,7 @@ class MapperConfig:
     epipolar_along_clip: float
     epipolar_band_px: float
     refind_radius_px: int
-    refind_subpix_iterations: int
+    local_ba_min_keyframes: int
     outlier_min_good_measurements: int
 
 
@@ -158,11 +162,13 @@ class SyntheticConfig:
 @dataclass(frozen=True)
 class SystemConfig:
     mode: str
+    mapper_idle_wait_s: float
 
 
 @dataclass(frozen=True)
 class CalibrateConfig:
     detector: str
+    fast_check: bool
     subpix_window_frac: float
     subpix_window_max_px: int
     frame_step: int
@@ -179,6 +185,7 @@ class CalibrateConfig:
     outlier_factor: float
     outlier_min_rms_px: float
     max_refits: int
+    selection_grid: int
     coverage_grid: int
     min_tilt_deg: float
 
@@ -198,7 +205,7 @@ class SynthCalibrationConfig:
     roll_max_deg: float
     fill: list[float]
     border_px: float
-    supersample: int
+    edge_samples: int
     black: float
     white: float
     background: float

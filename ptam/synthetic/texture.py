@@ -1,0 +1,147 @@
+"""Deterministic procedural textures for scene rectangles.
+
+``dead_leaves``: the dead-leaves model — random rectangles, triangles and ellipses painted over each other
+in random order, with radii drawn from a power law ``p(r) ∝ r^-exponent`` between ``sizes[0]`` and
+``sizes[1]`` (metres) and grey levels uniform in ``grey``. With exponent 3 the visible shapes are equally
+frequent in every octave of size, so the texture has corners at every pyramid level and no repeating tile
+that would make patches ambiguous. ``detail`` adds texel-scale band-limited noise (grey-level standard
+deviation) so no region is perfectly flat. ``coverage`` is the mean number of shape layers over a point.
+
+``constant``: one grey level (test scenes with sharp, measurable geometric edges).
+
+Everything is drawn from ``numpy.random.default_rng(seed)``, so the same spec gives the same texels.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+from ..errors import InputError
+
+DEAD_LEAVES_DEFAULTS = {"grey": [20, 235], "coverage": 4.0, "exponent": 3.0, "detail": 0.0}
+_SUBPIXEL_BITS = 4  # fixed-point vertex precision handed to OpenCV's polygon filler
+_BATCH = 65536  # shapes drawn from the generator per round until the coverage is reached
+_ASPECT_MIN = 0.25  # thinnest rectangle / ellipse (minor / major axis)
+_DETAIL_BLUR_TEXELS = 1.0  # correlation length of the fine detail
+_MAX_TEXELS = 64_000_000  # per texture; beyond this a scene file asks for gigabytes
+_TRI_AREA = 3.0 * math.sqrt(3.0) / 4.0  # area / r² of an equilateral triangle, for the coverage count
+_TRI_JITTER = 0.3  # triangle vertex angles vary by up to this fraction of a third of a turn
+
+
+def _number(spec, key, where, lo=-math.inf, hi=math.inf):
+    v = spec.get(key)
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not (lo <= v <= hi) or not math.isfinite(v):
+        raise InputError(f"{where}: texture '{key}' must be a number in [{lo:g}, {hi:g}], got {v!r}")
+    return float(v)
+
+
+def _pair(spec, key, where, lo, hi):
+    v = spec.get(key)
+    if (not isinstance(v, (list, tuple)) or len(v) != 2
+            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)
+            or not (lo <= v[0] <= v[1] <= hi)):
+        raise InputError(f"{where}: texture '{key}' must be [low, high] with {lo:g} <= low <= high <= {hi:g}, "
+                         f"got {v!r}")
+    return float(v[0]), float(v[1])
+
+
+def check_texture(spec: dict, where: str) -> dict:
+    """The texture spec with defaults filled in, validated (cheap: nothing is drawn)."""
+    if not isinstance(spec, dict) or "type" not in spec:
+        raise InputError(f"{where}: texture must be a mapping with a 'type' (dead_leaves or constant)")
+    kind = spec["type"]
+    if kind == "constant":
+        unknown = set(spec) - {"type", "value"}
+        if unknown:
+            raise InputError(f"{where}: unknown constant-texture key(s) {', '.join(sorted(unknown))}")
+        return {"type": kind, "value": _number(spec, "value", where, 0.0, 255.0)}
+    if kind != "dead_leaves":
+        raise InputError(f"{where}: unknown texture type '{kind}' (expected dead_leaves or constant)")
+    spec = {**DEAD_LEAVES_DEFAULTS, **spec}
+    unknown = set(spec) - {"type", "seed", "texel", "sizes", *DEAD_LEAVES_DEFAULTS}
+    if unknown:
+        raise InputError(f"{where}: unknown dead_leaves key(s) {', '.join(sorted(unknown))}")
+    seed = spec.get("seed")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise InputError(f"{where}: texture 'seed' must be a non-negative integer, got {seed!r}")
+    texel = _number(spec, "texel", where, 1e-4, 10.0)
+    return {"type": kind, "seed": seed, "texel": texel, "sizes": _pair(spec, "sizes", where, texel, 1e3),
+            "grey": _pair(spec, "grey", where, 0.0, 255.0), "coverage": _number(spec, "coverage", where, 0.1, 100.0),
+            "exponent": _number(spec, "exponent", where, 0.0, 10.0),
+            "detail": _number(spec, "detail", where, 0.0, 128.0)}
+
+
+def make_texture(spec: dict, width_m: float, height_m: float, where: str) -> tuple[np.ndarray, float]:
+    """Texels (rows along the rectangle's second axis) as float32 grey levels, and the texel size in metres."""
+    spec = check_texture(spec, where)
+    if spec["type"] == "constant":
+        return np.full((1, 1), spec["value"], dtype=np.float32), max(width_m, height_m)
+    W, H = math.ceil(width_m / spec["texel"]), math.ceil(height_m / spec["texel"])
+    if W * H > _MAX_TEXELS:
+        raise InputError(f"{where}: texture of {W}x{H} texels is too large; raise 'texel'")
+    return _dead_leaves(spec, W, H), spec["texel"]
+
+
+def _radii(u, lo, hi, exponent):
+    """Inverse CDF of p(r) ∝ r^-exponent on [lo, hi]."""
+    if abs(exponent - 1.0) < 1e-9:
+        return lo * (hi / lo) ** u
+    e = 1.0 - exponent
+    return (lo ** e + u * (hi ** e - lo ** e)) ** (1.0 / e)
+
+
+def _dead_leaves(spec: dict, W: int, H: int) -> np.ndarray:
+    texel = spec["texel"]
+    (r_lo, r_hi), (g_lo, g_hi) = spec["sizes"], spec["grey"]
+    coverage, exponent, detail = spec["coverage"], spec["exponent"], spec["detail"]
+    rng = np.random.default_rng(spec["seed"])
+    img = np.full((H, W), round(0.5 * (g_lo + g_hi)), dtype=np.uint8)
+    scale = 1 << _SUBPIXEL_BITS
+    target = coverage * W * H
+    painted = 0.0
+    while painted < target:
+        n = _BATCH
+        r = _radii(rng.random(n), r_lo / texel, r_hi / texel, exponent)
+        aspect = rng.uniform(_ASPECT_MIN, 1.0, n)
+        kind = rng.integers(0, 3, n)  # 0 rectangle, 1 triangle, 2 ellipse
+        # Centres may fall a radius outside the rectangle so the borders are covered as densely as the middle.
+        cx = rng.uniform(-r, W + r)
+        cy = rng.uniform(-r, H + r)
+        ang = rng.uniform(0.0, 2.0 * np.pi, n)
+        # Triangle vertices a third of a turn apart, jittered: irregular but never slivers.
+        tri = ang[:, None] + (2.0 * np.pi / 3.0) * (np.arange(3) + rng.uniform(-_TRI_JITTER, _TRI_JITTER, (n, 3)))
+        grey = rng.integers(round(g_lo), round(g_hi) + 1, n)
+        area = np.where(kind == 0, 4.0 * aspect, np.where(kind == 1, _TRI_AREA, np.pi * aspect)) * r * r
+        csum = painted + np.cumsum(area * np.clip(  # only the part inside the texture counts as coverage
+            (np.minimum(cx + r, W) - np.maximum(cx - r, 0)) * (np.minimum(cy + r, H) - np.maximum(cy - r, 0))
+            / (4.0 * r * r), 0.0, 1.0))
+        n = int(min(n, np.searchsorted(csum, target) + 1))
+        painted = csum[n - 1]
+        ca, sa = np.cos(ang), np.sin(ang)
+        rect = np.stack([np.stack([sx * r, sy * r * aspect], -1) for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))],
+                        axis=1)  # (n, 4, 2) before rotation
+        rect = np.stack([ca[:, None] * rect[..., 0] - sa[:, None] * rect[..., 1],
+                         sa[:, None] * rect[..., 0] + ca[:, None] * rect[..., 1]], axis=-1)
+        rect = np.round((rect + np.stack([cx, cy], -1)[:, None]) * scale).astype(np.int32)
+        tri_pts = np.round(np.stack([cx[:, None] + r[:, None] * np.cos(tri), cy[:, None] + r[:, None] * np.sin(tri)],
+                                    axis=-1) * scale).astype(np.int32)
+        cen = np.round(np.stack([cx, cy], -1) * scale).astype(np.int32)
+        axes = np.round(np.stack([r, r * aspect], -1) * scale).astype(np.int32)
+        deg = np.degrees(ang)
+        for i in range(n):  # one-off generation; painter's order is the dead-leaves occlusion
+            g = int(grey[i])
+            if kind[i] == 0:
+                cv2.fillConvexPoly(img, rect[i], g, cv2.LINE_8, _SUBPIXEL_BITS)
+            elif kind[i] == 1:
+                cv2.fillConvexPoly(img, tri_pts[i], g, cv2.LINE_8, _SUBPIXEL_BITS)
+            else:
+                cv2.ellipse(img, cen[i], axes[i], deg[i], 0.0, 360.0, g, -1, cv2.LINE_8, _SUBPIXEL_BITS)
+    tex = img.astype(np.float32)
+    if detail > 0:
+        noise = cv2.GaussianBlur(rng.standard_normal((H, W)).astype(np.float32), (0, 0), _DETAIL_BLUR_TEXELS)
+        tex += noise * np.float32(detail / max(float(noise.std()), 1e-12))
+        np.clip(tex, 0.0, 255.0, out=tex)
+    return tex

@@ -1,0 +1,121 @@
+"""Rendered sequences on disk: TUM layout, cache behaviour, lossless video, and ``ptam synth``."""
+
+import cv2
+import numpy as np
+import pytest
+
+import ptam.synthetic.sequence as sequence
+from ptam.camera import load_camera
+from ptam.cli import main as cli_main
+from ptam.eval.trajectory import read_tum
+from ptam.synthetic import ensure_sequence, load_scene
+from ptam.synthetic.scene import Scene
+
+TINY = """\
+camera: {model: fov, width: 80, height: 60, fx: 48.0, fy: 48.0, cx: 39.5, cy: 29.5, omega: 0.9}
+frames: 6
+fps: 10
+rectangles:
+  - {name: wall, center: [0, 0, 3], axes: [[1, 0, 0], [0, 1, 0]], size: [12, 9],
+     texture: {type: dead_leaves, seed: 3, texel: 0.02, sizes: [0.05, 1.0], detail: 2}}
+trajectory:
+  up: [0, -1, 0]
+  keys:
+    - {frame: 0, position: [0, 0, 0], look_at: [0, 0, 3]}
+    - {frame: 5, position: [0.5, 0, 0], look_at: [0.5, 0, 3]}
+render:
+  noise: {sigma: 1.0, seed: 2}
+"""
+
+
+@pytest.fixture
+def tiny(tmp_path, monkeypatch):
+    monkeypatch.delenv(sequence.CACHE_ENV, raising=False)
+    path = tmp_path / "tiny.yaml"
+    path.write_text(TINY)
+    return path
+
+
+def _frames(d, n):
+    return [cv2.imread(str(d / f"rgb/{i:06d}.png"), cv2.IMREAD_UNCHANGED) for i in range(n)]
+
+
+def test_sequence_layout_and_contents(tiny, tmp_path):
+    d = ensure_sequence(tiny, cache_dir=tmp_path / "cache", video=True)
+    assert d.parent == tmp_path / "cache" / "synthetic"
+    scene = load_scene(tiny)
+    frames = _frames(d, 6)
+    for i, f in enumerate(frames):
+        assert f.dtype == np.uint8 and f.shape == (60, 80)
+        assert np.array_equal(f, scene.render_frame(i))
+    lines = [ln.split() for ln in (d / "rgb.txt").read_text().splitlines() if not ln.startswith("#")]
+    assert [name for _, name in lines] == [f"rgb/{i:06d}.png" for i in range(6)]
+    assert np.allclose([float(t) for t, _ in lines], scene.timestamps, atol=1e-9)
+    t, T = read_tum(d / "groundtruth.txt")
+    assert np.allclose(t, scene.timestamps, atol=1e-9) and np.abs(T - scene.poses_T_wc).max() < 1e-12
+    assert load_camera(d / "camera.yaml").to_dict() == scene.camera.to_dict()
+    again = load_scene(d / "scene.yaml")  # the written description renders the same sequence
+    assert again.hash == scene.hash and np.array_equal(again.render_frame(3), frames[3])
+    cap = cv2.VideoCapture(str(d / "video.avi"))
+    for f in frames:  # FFV1 is lossless
+        ok, img = cap.read()
+        assert ok and np.array_equal(img[..., 0], f)
+    assert not cap.read()[0]
+    assert [p.name for p in d.parent.iterdir()] == [d.name]  # no temporary directory left behind
+
+
+def test_cache_hit_does_not_render(tiny, tmp_path, monkeypatch):
+    cache = tmp_path / "cache"
+    d = ensure_sequence(tiny, cache_dir=cache)
+    assert not (d / "video.avi").exists()
+
+    def fail(*a, **k):
+        raise AssertionError("rendered again")
+
+    monkeypatch.setattr(Scene, "render_frame", fail)
+    assert ensure_sequence(tiny, cache_dir=cache) == d
+    monkeypatch.undo()
+    assert ensure_sequence(tiny, cache_dir=cache, video=True) == d  # the video is added from the PNGs
+    cap = cv2.VideoCapture(str(d / "video.avi"))
+    assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == 6
+    tiny.write_text(TINY.replace("seed: 2", "seed: 3"))  # another scene content, another entry
+    assert ensure_sequence(tiny, cache_dir=cache) != d
+
+
+def test_interrupted_render_leaves_no_cache_entry(tiny, tmp_path, monkeypatch):
+    real = Scene.render_frame
+
+    def flaky(self, i):
+        if i == 3:
+            raise KeyboardInterrupt
+        return real(self, i)
+
+    monkeypatch.setattr(Scene, "render_frame", flaky)
+    with pytest.raises(KeyboardInterrupt):
+        ensure_sequence(tiny, cache_dir=tmp_path / "cache")
+    assert list((tmp_path / "cache" / "synthetic").iterdir()) == []
+
+
+def test_cache_dir_from_environment(tiny, tmp_path, monkeypatch):
+    monkeypatch.setenv(sequence.CACHE_ENV, str(tmp_path / "env"))
+    assert ensure_sequence(tiny, cache_dir=tmp_path / "ignored").parent == tmp_path / "env" / "synthetic"
+
+
+def test_cli_synth_then_eval_reports_zero_error(tiny, tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv(sequence.CACHE_ENV, str(tmp_path / "cache"))
+    assert cli_main(["synth", "--list"]) == 0
+    assert "two_wall_short" in capsys.readouterr().out.split()
+    out = tmp_path / "out"
+    assert cli_main(["synth", str(tiny), str(out), "--video"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["camera.yaml", "groundtruth.txt", "rgb", "rgb.txt",
+                                                     "scene.yaml", "video.avi"]
+    capsys.readouterr()
+    gt = str(out / "groundtruth.txt")
+    assert cli_main(["eval", gt, gt]) == 0
+    last = dict(kv.split("=") for kv in capsys.readouterr().out.strip().splitlines()[-1].split())
+    assert float(last["ate_rmse_m"]) < 1e-9 and abs(float(last["scale"]) - 1.0) < 1e-9
+    assert cli_main(["synth", str(tiny), str(out)]) == 2  # not empty
+    assert "exists and is not empty" in capsys.readouterr().err
+    assert cli_main(["synth", "no_such_scene", str(tmp_path / "o2")]) == 2
+    assert capsys.readouterr().err.count("\n") == 1
+    assert cli_main(["synth", str(tiny)]) == 2
