@@ -1,0 +1,35 @@
+"""The decaying-velocity motion model that gives each frame its prior pose (PTAM §5.1, §6.5).
+
+PTAM code (``ApplyMotionModel``/``UpdateMotionModel``): the prior is exp(v)·E_CW of the last frame; after
+tracking, with Δ = ln(E_new·E_start⁻¹), v ← decay·(blend·Δ + (1 − blend)·v), so without measurements the
+camera slows and stops. The velocity's magnitude with its translation divided by the mean scene depth decides
+whether the camera is nearly stationary (§6.5: the coarse stage is then skipped).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry import se3
+
+
+class MotionModel:
+    def __init__(self, tracker_cfg):
+        self.decay = float(tracker_cfg.motion_decay)
+        self.blend = float(tracker_cfg.motion_blend)
+        self.velocity = np.zeros(6)
+        self.scaled_speed = 0.0
+
+    def reset(self) -> None:
+        self.velocity = np.zeros(6)
+        self.scaled_speed = 0.0
+
+    def predict(self, T_cw: np.ndarray) -> np.ndarray:
+        return se3.exp(self.velocity) @ T_cw
+
+    def update(self, T_start: np.ndarray, T_new: np.ndarray, mean_scene_depth: float) -> None:
+        delta = se3.log(T_new @ se3.inv(T_start))
+        self.velocity = self.decay * (self.blend * delta + (1.0 - self.blend) * self.velocity)
+        v = self.velocity.copy()
+        v[:3] /= mean_scene_depth
+        self.scaled_speed = float(np.linalg.norm(v))

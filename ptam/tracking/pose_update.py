@@ -1,0 +1,29 @@
+"""Steps 4 and 6 of PTAM §5: the robust pose update from patch measurements (PTAM §5.4, §6.5).
+
+Each measurement's noise is σ = 2^level level-0 pixels (PTAM §5.4); ``ptam.kernels.irls.pose_irls`` runs the
+Tukey-biweight reweighted least squares on SE(3).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..kernels.irls import pose_irls
+
+
+def update_pose(cam_params, tracker_cfg, T_cw, X, xy, level, coarse: bool):
+    """New T_cw and Tukey weights (n,) from world points X (n, 3) found at level-0 pixels ``xy`` on ``level``.
+
+    The coarse stage re-linearises at every iteration (PTAM code); the fine stage every
+    ``relinearise_every`` iterations (PTAM §6.5).
+    """
+    cfg = tracker_cfg
+    if cfg.tukey_override_enabled:
+        override = cfg.tukey_override_sigma_sq_coarse if coarse else cfg.tukey_override_sigma_sq_fine
+    else:
+        override = 0.0
+    inv_sigma = np.exp2(-np.asarray(level, dtype=np.float64))
+    return pose_irls(cam_params, np.ascontiguousarray(T_cw, dtype=np.float64), np.ascontiguousarray(X),
+                     np.ascontiguousarray(xy, dtype=np.float64), inv_sigma, int(cfg.irls_iterations),
+                     1 if coarse else int(cfg.relinearise_every), float(cfg.min_tukey_sigma),
+                     float(cfg.pose_prior), int(cfg.tukey_override_after), float(override))

@@ -1,0 +1,41 @@
+"""Tracking quality from the fraction of successful observations, and the lost state (PTAM §5.6).
+
+PTAM code (``AssessTrackingQuality``): good when found/attempted over all levels exceeds ``quality_good``;
+otherwise bad when the fraction among the "large" features (levels ≥ ``quality_large_min_level``, if more than
+``quality_large_min_attempted`` were attempted; else all) is below ``quality_lost``; otherwise poor. Poor
+frames are tracked but may not become keyframes. Tracking is lost once ``lost_frames`` consecutive frames were
+bad (PTAM code: recovery starts when the count of bad frames reaches 3), until a frame is not bad.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+GOOD, POOR, BAD = "good", "poor", "bad"
+
+
+class TrackingQuality:
+    def __init__(self, tracker_cfg):
+        self.cfg = tracker_cfg
+        self.bad_frames = 0
+
+    def reset(self) -> None:
+        self.bad_frames = 0
+
+    @property
+    def lost(self) -> bool:
+        return self.bad_frames >= self.cfg.lost_frames
+
+    def assess(self, attempted_per_level: np.ndarray, found_per_level: np.ndarray) -> str:
+        cfg = self.cfg
+        attempted, found = int(attempted_per_level.sum()), int(found_per_level.sum())
+        if attempted == 0 or found == 0:
+            quality = BAD
+        else:
+            fraction = found / attempted
+            large_attempted = int(attempted_per_level[cfg.quality_large_min_level:].sum())
+            large = (found_per_level[cfg.quality_large_min_level:].sum() / large_attempted
+                     if large_attempted > cfg.quality_large_min_attempted else fraction)
+            quality = GOOD if fraction > cfg.quality_good else BAD if large < cfg.quality_lost else POOR
+        self.bad_frames = self.bad_frames + 1 if quality == BAD else 0
+        return quality

@@ -1,0 +1,65 @@
+"""The Tukey IRLS pose kernel and its parts against their numpy references, and its robustness."""
+
+import numpy as np
+import pytest
+
+from ptam.geometry import se3
+from ptam.kernels.irls import (
+    normal_equations,
+    normal_equations_ref,
+    pose_irls,
+    pose_irls_ref,
+    se3_exp,
+    tukey_sigma_sq,
+    tukey_sigma_sq_ref,
+)
+
+from .test_camera import CAMERAS
+
+
+def test_parts_match_reference():
+    rng = np.random.default_rng(0)
+    J = rng.normal(size=(300, 2, 6))
+    r = rng.normal(size=(300, 2))
+    s = 0.5 ** rng.integers(0, 4, 300)
+    w = rng.uniform(0.0, 1.0, 300) * (rng.uniform(size=300) > 0.2)
+    H, g = normal_equations(J, r, s, w)
+    H_r, g_r = normal_equations_ref(J, r, s, w)
+    assert np.allclose(H, H_r, atol=1e-10) and np.allclose(g, g_r, atol=1e-10)
+    for n in (1, 3, 4, 57, 1000):
+        e2 = rng.exponential(size=n)
+        assert tukey_sigma_sq(e2, 0.4) == pytest.approx(tukey_sigma_sq_ref(e2, 0.4), rel=1e-12)
+    assert tukey_sigma_sq(np.zeros(10), 0.4) == pytest.approx(0.16)
+    for mu in (np.zeros(6), rng.normal(size=6) * 1e-7, rng.normal(size=6)):
+        assert np.allclose(se3_exp(mu), se3.exp(mu), atol=1e-12)
+
+
+def _problem(cam, rng, n, noise_px, outlier_fraction):
+    T_true = se3.exp(np.array([0.1, -0.05, 0.2, 0.03, -0.02, 0.05]))
+    Xc = np.concatenate([rng.uniform(-1.5, 1.5, (n, 2)), rng.uniform(1.5, 4.0, (n, 1))], axis=1)
+    X = se3.transform(se3.inv(T_true), Xc)
+    level = rng.integers(0, 4, n)
+    meas = cam.project(Xc) + rng.normal(size=(n, 2)) * noise_px * 2.0 ** level[:, None]
+    bad = rng.uniform(size=n) < outlier_fraction
+    ang = rng.uniform(0.0, 2 * np.pi, bad.sum())
+    size = rng.uniform(10.0, 40.0, bad.sum()) * 2.0 ** level[bad]  # gross errors at the measurement's scale
+    meas[bad] += size[:, None] * np.stack([np.cos(ang), np.sin(ang)], axis=1)
+    return T_true, X, meas, 0.5 ** level, bad
+
+
+@pytest.mark.parametrize("name", list(CAMERAS))
+def test_pose_irls_matches_reference_and_rejects_outliers(name):
+    cam = CAMERAS[name]
+    rng = np.random.default_rng(4)
+    T_true, X, meas, inv_sigma, bad = _problem(cam, rng, 600, 0.3, 0.2)
+    T0 = se3.exp(np.array([0.02, 0.01, -0.03, 0.01, 0.015, -0.01])) @ T_true
+    for relin, override in ((4, 0.0), (1, 16.0)):
+        args = (T0, X, meas, inv_sigma, 10, relin, 0.4, 100.0, 5, override)
+        T, w = pose_irls(cam.kernel_params(), *args)
+        T_r, w_r = pose_irls_ref(cam, *args)
+        assert np.allclose(T, T_r, atol=1e-9)
+        assert np.allclose(w, w_r, atol=1e-7)
+        err = se3.log(T @ se3.inv(T_true))
+        assert np.linalg.norm(err[:3]) < 2e-3  # metres, with 20% gross outliers
+        assert np.degrees(np.linalg.norm(err[3:])) < 0.05
+        assert (w[bad] == 0).mean() > 0.9 and (w[~bad] > 0).mean() > 0.95
