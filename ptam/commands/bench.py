@@ -1,0 +1,17 @@
+"""``ptam bench WHAT``: the paper's timing tables measured on this machine (PTAM Tables 1 and 2)."""
+
+from __future__ import annotations
+
+from ..errors import PtamError
+
+
+def main(args, cfg) -> int:
+    if args.what == "ba":
+        from ..eval.bench_ba import run_ba_benchmark
+        run_ba_benchmark(cfg)
+        return 0
+    if args.what == "tracking":
+        from ..eval.bench_tracking import run_tracking_benchmark
+        run_tracking_benchmark(cfg, args.scene)
+        return 0
+    raise PtamError(f"ptam bench {args.what}: not implemented yet")

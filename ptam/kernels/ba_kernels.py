@@ -1,0 +1,578 @@
+"""Bundle-adjustment kernels: the per-iteration loops of PTAM's Levenberg–Marquardt (PTAM §6.3, eq. 10).
+
+The structure is Hartley & Zisserman's sparse LM (MVG 2nd ed., A6.4), as PTAM's ``Bundle.cc`` does it:
+
+* ``ba_residuals`` / ``ba_robust_cost``: normalised reprojection errors e = (û − CamProj(E·p)) / σ with
+  σ = 2^level px, and the summed Tukey objective.
+* ``tukey_cutoff_sq``: the Tukey cut-off c² from the median of the squared errors (PTAM code, MEstimator.h).
+* ``ba_linearise``: per measurement the Jacobians A = ∂/∂μ (2×6, pose update exp(μ)·E) and B = ∂/∂p (2×3),
+  both scaled by the square root of the Tukey weight, accumulated into camera blocks U (6×6), point
+  blocks V (3×3), camera-point blocks W = AᵀB (6×3) and the gradients ε_a, ε_b.
+* ``ba_schur``: S = U* − Σ W V*⁻¹ Wᵀ over every camera pair that shares a point (the O(N²M)
+  camera-point-camera products of §6.3) and the reduced right-hand side; * means the diagonal × (1 + λ).
+* ``ba_envelope`` / ``ba_envelope_solve``: Cholesky of S inside its envelope (dense: the whole lower
+  triangle; sparse: after a bandwidth-reducing reordering of the keyframes), GIL-free plain loops.
+* ``ba_backsub``: the point updates δp = V*⁻¹ (ε_b − Σ Wᵀ δμ).
+
+Measurements are sorted by point (``order``, ``pt_start``) and the camera pairs of each point are
+enumerated once per solve by ``ba_pair_script``; ``ba_schur`` walks them in the same order. ``*_ref``
+functions are plain numpy references for the tests.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ..geometry import se3
+from .camproj import project, project_jac
+
+# Tukey biweight constant for 95% efficiency and the median-absolute-deviation → σ factor for a Gaussian
+# (PTAM code, MEstimator.h ``Tukey::FindSigmaSquared``: σ = 1.4826·(1 + 5/(2n − 6))·√median(e²), c = 4.6851σ).
+TUKEY_C = 4.6851
+MAD_TO_SIGMA = 1.4826
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Residuals, Tukey
+# ---------------------------------------------------------------------------------------------------------
+@njit(nogil=True, cache=True)
+def ba_residuals(cam, poses, points, mcam, mpt, uv, inv_sigma, use, err, e2, bad):
+    """Normalised errors err (K, 2), |err|² e2 (K,), bad (K,) = behind the camera, for measurements in ``use``."""
+    for k in range(mcam.shape[0]):
+        err[k, 0] = 0.0
+        err[k, 1] = 0.0
+        e2[k] = 0.0
+        bad[k] = False
+        if not use[k]:
+            continue
+        T = poses[mcam[k]]
+        p = mpt[k]
+        X = points[p, 0]
+        Y = points[p, 1]
+        Z = points[p, 2]
+        xc = T[0, 0] * X + T[0, 1] * Y + T[0, 2] * Z + T[0, 3]
+        yc = T[1, 0] * X + T[1, 1] * Y + T[1, 2] * Z + T[1, 3]
+        zc = T[2, 0] * X + T[2, 1] * Y + T[2, 2] * Z + T[2, 3]
+        if zc <= 0.0:
+            bad[k] = True
+            continue
+        u, v, _ = project(cam, xc, yc, zc)
+        ex = (uv[k, 0] - u) * inv_sigma[k]
+        ey = (uv[k, 1] - v) * inv_sigma[k]
+        err[k, 0] = ex
+        err[k, 1] = ey
+        e2[k] = ex * ex + ey * ey
+
+
+@njit(nogil=True, cache=True)
+def tukey_objective(r2, c2):
+    """PTAM's unscaled Tukey objective: 1 − (1 − r²/c²)³ inside the cut-off, 1 beyond it."""
+    if r2 >= c2:
+        return 1.0
+    d = 1.0 - r2 / c2
+    return 1.0 - d * d * d
+
+
+@njit(nogil=True, cache=True)
+def ba_robust_cost(e2, bad, use, c2):
+    """Σ Tukey objective over ``use``; measurements behind the camera score 1 (PTAM code)."""
+    cost = 0.0
+    for k in range(e2.shape[0]):
+        if use[k]:
+            cost += 1.0 if bad[k] else tukey_objective(e2[k], c2)
+    return cost
+
+
+@njit(nogil=True, cache=True)
+def tukey_cutoff_sq(e2, use, bad, min_cutoff):
+    """Tukey cut-off c² from the (upper) median of e² over ``use & ~bad``, at least ``min_cutoff``²."""
+    n = 0
+    for k in range(e2.shape[0]):
+        if use[k] and not bad[k]:
+            n += 1
+    floor = min_cutoff * min_cutoff
+    if n == 0:
+        return floor
+    buf = np.empty(n)
+    n = 0
+    for k in range(e2.shape[0]):
+        if use[k] and not bad[k]:
+            buf[n] = e2[k]
+            n += 1
+    med = np.partition(buf, n // 2)[n // 2]
+    # The small-sample factor 1 + 5/(2n − 6) is undefined for n ≤ 3; PTAM never meets that case.
+    small = 1.0 + 5.0 / (2.0 * n - 6.0) if 2 * n > 6 else 1.0
+    c = TUKEY_C * MAD_TO_SIGMA * small * math.sqrt(med)
+    return max(c * c, floor)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Linearisation and block accumulation
+# ---------------------------------------------------------------------------------------------------------
+@njit(nogil=True, cache=True)
+def ba_linearise(cam, poses, points, mcam, mpt, uv, inv_sigma, use, c2, cam_row, U, ea, V, eb, W, live):
+    """Accumulate U, ε_a (free cameras), V, ε_b (points) and W (per measurement); returns the robust cost.
+
+    ``cam_row[c]`` is camera c's block row or −1 when fixed. ``live`` (out) marks measurements in the
+    system this iteration: in ``use``, in front of the camera and inside Tukey's non-zero-weight region.
+    The others count 1 in the cost, as in PTAM (they are PTAM's ``bBad`` measurements).
+    """
+    U[:] = 0.0
+    ea[:] = 0.0
+    V[:] = 0.0
+    eb[:] = 0.0
+    J = np.empty((2, 3))
+    A = np.empty((2, 6))
+    B = np.empty((2, 3))
+    cost = 0.0
+    for k in range(mcam.shape[0]):
+        live[k] = False
+        if not use[k]:
+            continue
+        T = poses[mcam[k]]
+        p = mpt[k]
+        X = points[p, 0]
+        Y = points[p, 1]
+        Z = points[p, 2]
+        xc = T[0, 0] * X + T[0, 1] * Y + T[0, 2] * Z + T[0, 3]
+        yc = T[1, 0] * X + T[1, 1] * Y + T[1, 2] * Z + T[1, 3]
+        zc = T[2, 0] * X + T[2, 1] * Y + T[2, 2] * Z + T[2, 3]
+        if zc <= 0.0:
+            cost += 1.0
+            continue
+        u, v, _ = project_jac(cam, xc, yc, zc, J)
+        s = inv_sigma[k]
+        ex = (uv[k, 0] - u) * s
+        ey = (uv[k, 1] - v) * s
+        r2 = ex * ex + ey * ey
+        if r2 >= c2:
+            cost += 1.0
+            continue
+        live[k] = True
+        cost += tukey_objective(r2, c2)
+        # Square root of the Tukey weight on both the error and the Jacobians (PTAM code), so that
+        # AᵀA and Aᵀε carry the full weight w = (1 − r²/c²)².
+        sw = 1.0 - r2 / c2
+        ex *= sw
+        ey *= sw
+        g = sw * s
+        for i in range(2):
+            j0 = g * J[i, 0]
+            j1 = g * J[i, 1]
+            j2 = g * J[i, 2]
+            # ∂(exp(μ)·Xc)/∂μ = [I | −[Xc]×] for μ = (translation, rotation), PTAM §5.2.
+            A[i, 0] = j0
+            A[i, 1] = j1
+            A[i, 2] = j2
+            A[i, 3] = -j1 * zc + j2 * yc
+            A[i, 4] = j0 * zc - j2 * xc
+            A[i, 5] = -j0 * yc + j1 * xc
+            for m in range(3):
+                B[i, m] = j0 * T[0, m] + j1 * T[1, m] + j2 * T[2, m]
+        for a in range(3):
+            for b in range(a + 1):
+                V[p, a, b] += B[0, a] * B[0, b] + B[1, a] * B[1, b]
+            eb[p, a] += B[0, a] * ex + B[1, a] * ey
+        r = cam_row[mcam[k]]
+        if r < 0:
+            continue
+        for a in range(6):
+            for b in range(a + 1):
+                U[r, a, b] += A[0, a] * A[0, b] + A[1, a] * A[1, b]
+            ea[r, a] += A[0, a] * ex + A[1, a] * ey
+            for b in range(3):
+                W[k, a, b] = A[0, a] * B[0, b] + A[1, a] * B[1, b]
+    # Accumulated as lower triangles (PTAM's BundleTriangle_Update*); mirror them.
+    for r in range(U.shape[0]):
+        for a in range(6):
+            for b in range(a):
+                U[r, b, a] = U[r, a, b]
+    for p in range(V.shape[0]):
+        for a in range(3):
+            for b in range(a):
+                V[p, b, a] = V[p, a, b]
+    return cost
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Schur complement on the points
+# ---------------------------------------------------------------------------------------------------------
+@njit(nogil=True, cache=True)
+def ba_pair_script(pt_start, order, mrow, n_free):
+    """Every pair of free cameras sharing a point, as ``ba_schur`` walks them (PTAM code: GenerateOffDiagScripts).
+
+    ``order`` lists the measurements by point, and within a point by ascending camera row. Returns, per entry
+    of that walk, the index of its camera pair (r_a > r_b), and each pair's rows (r_a) and columns (r_b).
+    """
+    n = 0
+    for p in range(pt_start.shape[0] - 1):
+        c = 0
+        for i in range(pt_start[p], pt_start[p + 1]):
+            if mrow[order[i]] >= 0:
+                c += 1
+        n += c * (c - 1) // 2
+    ra = np.empty(n, np.int64)
+    rb = np.empty(n, np.int64)
+    n = 0
+    for p in range(pt_start.shape[0] - 1):
+        for ia in range(pt_start[p], pt_start[p + 1]):
+            a = mrow[order[ia]]
+            if a < 0:
+                continue
+            for ib in range(pt_start[p], ia):
+                b = mrow[order[ib]]
+                if b >= 0:
+                    ra[n] = a
+                    rb[n] = b
+                    n += 1
+    # Bucket the entries by r_a, then number the distinct r_b of each bucket: O(n + n_free), no sort.
+    start = np.zeros(n_free + 1, np.int64)
+    for e in range(n):
+        start[ra[e] + 1] += 1
+    for r in range(n_free):
+        start[r + 1] += start[r]
+    fill = start[:-1].copy()
+    bucket = np.empty(n, np.int64)
+    for e in range(n):
+        bucket[fill[ra[e]]] = e
+        fill[ra[e]] += 1
+    seen = np.full(n_free, -1, np.int64)
+    slot = np.empty(n_free, np.int64)
+    pair_id = np.empty(n, np.int64)
+    rows = np.empty(n, np.int64)
+    cols = np.empty(n, np.int64)
+    n_pairs = 0
+    for r in range(n_free):
+        for t in range(start[r], start[r + 1]):
+            e = bucket[t]
+            b = rb[e]
+            if seen[b] != r:
+                seen[b] = r
+                slot[b] = n_pairs
+                rows[n_pairs] = r
+                cols[n_pairs] = b
+                n_pairs += 1
+            pair_id[e] = slot[b]
+    return pair_id, rows[:n_pairs].copy(), cols[:n_pairs].copy()
+
+
+@njit(nogil=True, cache=True)
+def inv_sym3(M, lam, out):
+    """out = (M with its diagonal × (1 + λ))⁻¹, or zeros when that is not positive definite (PTAM code)."""
+    a = M[0, 0] * (1.0 + lam)
+    d = M[1, 1] * (1.0 + lam)
+    f = M[2, 2] * (1.0 + lam)
+    b = M[0, 1]
+    c = M[0, 2]
+    e = M[1, 2]
+    c00 = d * f - e * e
+    c01 = c * e - b * f
+    c02 = b * e - c * d
+    det = a * c00 + b * c01 + c * c02
+    if a * d * f == 0.0 or det <= 0.0:
+        out[:] = 0.0
+        return
+    inv = 1.0 / det
+    out[0, 0] = c00 * inv
+    out[0, 1] = c01 * inv
+    out[0, 2] = c02 * inv
+    out[1, 0] = c01 * inv
+    out[1, 1] = (a * f - c * c) * inv
+    out[1, 2] = (b * c - a * e) * inv
+    out[2, 0] = c02 * inv
+    out[2, 1] = (b * c - a * e) * inv
+    out[2, 2] = (a * d - b * b) * inv
+
+
+@njit(nogil=True, cache=True)
+def _sub_wvwt(blocks, q, WVa, W, kb):
+    """blocks[q] −= WVa · W[kb]ᵀ (6×3 · 3×6)."""
+    for a in range(6):
+        w0 = WVa[a, 0]
+        w1 = WVa[a, 1]
+        w2 = WVa[a, 2]
+        for b in range(6):
+            blocks[q, a, b] -= w0 * W[kb, b, 0] + w1 * W[kb, b, 1] + w2 * W[kb, b, 2]
+
+
+@njit(nogil=True, cache=True)
+def ba_schur(U, ea, V, eb, W, live, lam, mrow, pt_start, order, pair_id, blocks, rhs, Vinv):
+    """Reduced camera system S δμ = rhs as blocks, and V*⁻¹ (M, 3, 3) for the back-substitution.
+
+    blocks[r] (r < n_free) is the diagonal block of camera row r; the off-diagonal block (r_a, r_b),
+    r_a > r_b, of the k-th entry of ``ba_pair_script``'s walk is blocks[pair_id[k]].
+    """
+    nf = U.shape[0]
+    blocks[:] = 0.0
+    for r in range(nf):
+        for a in range(6):
+            for b in range(6):
+                blocks[r, a, b] = U[r, a, b]
+            blocks[r, a, a] *= 1.0 + lam
+            rhs[6 * r + a] = ea[r, a]
+    WVa = np.empty((6, 3))
+    q = 0
+    for p in range(pt_start.shape[0] - 1):
+        inv_sym3(V[p], lam, Vinv[p])
+        Vi = Vinv[p]
+        for ia in range(pt_start[p], pt_start[p + 1]):
+            ka = order[ia]
+            ra = mrow[ka]
+            if ra < 0:
+                continue
+            if live[ka]:
+                for a in range(6):
+                    for b in range(3):
+                        WVa[a, b] = W[ka, a, 0] * Vi[0, b] + W[ka, a, 1] * Vi[1, b] + W[ka, a, 2] * Vi[2, b]
+                    rhs[6 * ra + a] -= WVa[a, 0] * eb[p, 0] + WVa[a, 1] * eb[p, 1] + WVa[a, 2] * eb[p, 2]
+                _sub_wvwt(blocks, ra, WVa, W, ka)
+            for ib in range(pt_start[p], ia):
+                kb = order[ib]
+                if mrow[kb] < 0:
+                    continue
+                pid = pair_id[q]
+                q += 1
+                if live[ka] and live[kb]:
+                    _sub_wvwt(blocks, pid, WVa, W, kb)
+
+
+@njit(nogil=True, cache=True)
+def ba_envelope(pair_rows, pair_cols, rank, dense):
+    """Skyline layout of S's lower triangle with block r moved to position rank[r]: row i of L holds columns
+    first[i]..i at env[ptr[i]:ptr[i + 1]]. ``dense`` keeps whole rows (first = 0)."""
+    nb = rank.shape[0]
+    fb = np.zeros(nb, np.int64) if dense else np.arange(nb)
+    if not dense:
+        for q in range(pair_rows.shape[0]):
+            a = rank[pair_rows[q]]
+            b = rank[pair_cols[q]]
+            hi = max(a, b)
+            lo = min(a, b)
+            if lo < fb[hi]:
+                fb[hi] = lo
+    n = 6 * nb
+    first = np.empty(n, np.int64)
+    ptr = np.empty(n + 1, np.int64)
+    ptr[0] = 0
+    for i in range(n):
+        first[i] = 6 * fb[i // 6]
+        ptr[i + 1] = ptr[i] + i - first[i] + 1
+    return first, ptr
+
+
+@njit(nogil=True, cache=True, fastmath=True)
+def _envelope_cholesky(env, first, ptr, n):
+    """In-place L·Lᵀ of the envelope, six rows (one keyframe, one shared ``first``) at a time so each row of L
+    already computed is read once per keyframe rather than once per row. False if not positive definite."""
+    for r0 in range(0, n, 6):
+        f = first[r0]
+        o = np.empty(6, np.int64)
+        for a in range(6):
+            o[a] = ptr[r0 + a] - f
+        o0, o1, o2, o3, o4, o5 = o[0], o[1], o[2], o[3], o[4], o[5]
+        for j in range(f, r0):
+            oj = ptr[j] - first[j]
+            s0 = s1 = s2 = s3 = s4 = s5 = 0.0
+            for k in range(max(f, first[j]), j):
+                ljk = env[oj + k]
+                s0 += env[o0 + k] * ljk
+                s1 += env[o1 + k] * ljk
+                s2 += env[o2 + k] * ljk
+                s3 += env[o3 + k] * ljk
+                s4 += env[o4 + k] * ljk
+                s5 += env[o5 + k] * ljk
+            d = env[oj + j]
+            env[o0 + j] = (env[o0 + j] - s0) / d
+            env[o1 + j] = (env[o1 + j] - s1) / d
+            env[o2 + j] = (env[o2 + j] - s2) / d
+            env[o3 + j] = (env[o3 + j] - s3) / d
+            env[o4 + j] = (env[o4 + j] - s4) / d
+            env[o5 + j] = (env[o5 + j] - s5) / d
+        for a in range(6):
+            i = r0 + a
+            for j in range(r0, i + 1):
+                oj = ptr[j] - f
+                s = env[o[a] + j]
+                for k in range(f, j):
+                    s -= env[o[a] + k] * env[oj + k]
+                if j < i:
+                    env[o[a] + j] = s / env[oj + j]
+                elif s > 0.0:
+                    env[o[a] + i] = math.sqrt(s)
+                else:
+                    return False
+    return True
+
+
+@njit(nogil=True, cache=True, fastmath=True)
+def ba_envelope_solve(blocks, pair_rows, pair_cols, rank, first, ptr, rhs):
+    """Solve S x = rhs by a Cholesky factorisation inside the envelope (fill-in never leaves it).
+
+    Plain loops instead of LAPACK: OpenBLAS threads would compete with the tracker's thread (and are
+    orders of magnitude slower on a loaded machine). Returns (x, ok); ok is False when S is not positive
+    definite (PTAM code: Cholesky failure, "the map is probably corrupt").
+    """
+    n = rhs.shape[0]
+    env = np.zeros(ptr[n])
+    for q in range(blocks.shape[0]):
+        R = 6 * rank[pair_rows[q]]
+        C = 6 * rank[pair_cols[q]]
+        for a in range(6):
+            for b in range(6):
+                i, j = (R + a, C + b) if R >= C else (C + b, R + a)
+                if j <= i:
+                    env[ptr[i] + j - first[i]] = blocks[q, a, b]
+    if not _envelope_cholesky(env, first, ptr, n):
+        return np.zeros(n), False
+    y = np.empty(n)
+    for r in range(rank.shape[0]):
+        for a in range(6):
+            y[6 * rank[r] + a] = rhs[6 * r + a]
+    for i in range(n):
+        oi = ptr[i] - first[i]
+        s = y[i]
+        for k in range(first[i], i):
+            s -= env[oi + k] * y[k]
+        y[i] = s / env[oi + i]
+    for i in range(n - 1, -1, -1):
+        oi = ptr[i] - first[i]
+        y[i] /= env[oi + i]
+        for k in range(first[i], i):
+            y[k] -= env[oi + k] * y[i]
+    x = np.empty(n)
+    for r in range(rank.shape[0]):
+        for a in range(6):
+            x[6 * r + a] = y[6 * rank[r] + a]
+    return x, True
+
+
+@njit(nogil=True, cache=True)
+def ba_backsub(Vinv, eb, W, live, mrow, pt_start, order, dcam):
+    """Point updates δp = V*⁻¹ (ε_b − Σ_j W_jᵀ δμ_j) (M, 3) from the camera updates dcam (6·n_free,)."""
+    m = pt_start.shape[0] - 1
+    dp = np.zeros((m, 3))
+    for p in range(m):
+        v0 = eb[p, 0]
+        v1 = eb[p, 1]
+        v2 = eb[p, 2]
+        for i in range(pt_start[p], pt_start[p + 1]):
+            k = order[i]
+            r = mrow[k]
+            if r < 0 or not live[k]:
+                continue
+            for a in range(6):
+                d = dcam[6 * r + a]
+                v0 -= W[k, a, 0] * d
+                v1 -= W[k, a, 1] * d
+                v2 -= W[k, a, 2] * d
+        Vi = Vinv[p]
+        dp[p, 0] = Vi[0, 0] * v0 + Vi[0, 1] * v1 + Vi[0, 2] * v2
+        dp[p, 1] = Vi[1, 0] * v0 + Vi[1, 1] * v1 + Vi[1, 2] * v2
+        dp[p, 2] = Vi[2, 0] * v0 + Vi[2, 1] * v1 + Vi[2, 2] * v2
+    return dp
+
+
+# ---------------------------------------------------------------------------------------------------------
+# numpy references (tests only)
+# ---------------------------------------------------------------------------------------------------------
+def ba_residuals_ref(camera, poses, points, mcam, mpt, uv, inv_sigma, use):
+    Xc = np.einsum("kij,kj->ki", poses[mcam, :3, :3], points[mpt]) + poses[mcam, :3, 3]
+    bad = use & (Xc[:, 2] <= 0.0)
+    ok = use & ~bad
+    err = np.zeros((len(mcam), 2))
+    err[ok] = (uv[ok] - camera.project(Xc[ok])) * inv_sigma[ok, None]
+    return err, (err ** 2).sum(axis=1), bad
+
+
+def tukey_cutoff_sq_ref(e2, use, bad, min_cutoff):
+    v = np.sort(e2[use & ~bad])
+    n = len(v)
+    if n == 0:
+        return min_cutoff ** 2
+    small = 1.0 + 5.0 / (2.0 * n - 6.0) if 2 * n > 6 else 1.0
+    c = TUKEY_C * MAD_TO_SIGMA * small * np.sqrt(v[n // 2])
+    return max(c * c, min_cutoff ** 2)
+
+
+def ba_robust_cost_ref(e2, bad, use, c2):
+    d = np.clip(1.0 - e2 / c2, 0.0, None)
+    obj = np.where(bad | (e2 >= c2), 1.0, 1.0 - d ** 3)
+    return float(obj[use].sum())
+
+
+def ba_linearise_ref(camera, poses, points, mcam, mpt, uv, inv_sigma, use, c2, cam_row, n_points):
+    """Returns U, ea, V, eb, W, live, cost with W zero where not live or the camera is fixed."""
+    K = len(mcam)
+    err, e2, bad = ba_residuals_ref(camera, poses, points, mcam, mpt, uv, inv_sigma, use)
+    cost = ba_robust_cost_ref(e2, bad, use, c2)
+    live = use & ~bad & (e2 < c2)
+    sw = np.where(live, 1.0 - e2 / c2, 0.0)
+    R = poses[mcam, :3, :3]
+    Xc = np.einsum("kij,kj->ki", R, points[mpt]) + poses[mcam, :3, 3]
+    Jp = np.zeros((K, 2, 3))
+    Jp[live] = camera.project_jacobian(Xc[live])
+    Jp *= (sw * inv_sigma)[:, None, None]
+    A = Jp @ se3.point_jacobian(Xc)
+    B = Jp @ R
+    eps = err * sw[:, None]
+    nf = int(cam_row.max()) + 1 if cam_row.size else 0
+    row = cam_row[mcam]
+    free = live & (row >= 0)
+    U = np.zeros((nf, 6, 6))
+    ea = np.zeros((nf, 6))
+    np.add.at(U, row[free], np.einsum("kia,kib->kab", A[free], A[free]))
+    np.add.at(ea, row[free], np.einsum("kia,ki->ka", A[free], eps[free]))
+    V = np.zeros((n_points, 3, 3))
+    eb = np.zeros((n_points, 3))
+    np.add.at(V, mpt[live], np.einsum("kia,kib->kab", B[live], B[live]))
+    np.add.at(eb, mpt[live], np.einsum("kia,ki->ka", B[live], eps[live]))
+    W = np.zeros((K, 6, 3))
+    W[free] = np.einsum("kia,kib->kab", A[free], B[free])
+    return U, ea, V, eb, W, live, cost
+
+
+def ba_schur_ref(U, ea, V, eb, W, live, lam, mrow, mpt):
+    """Dense S = U* − W V*⁻¹ Wᵀ, rhs = ε_a − W V*⁻¹ ε_b and V*⁻¹ by explicit (6N × 3M) matrices."""
+    nf, m = U.shape[0], V.shape[0]
+    damp = 1.0 + lam
+    Ustar = U.copy()
+    Ustar[:, np.arange(6), np.arange(6)] *= damp
+    Vstar = V.copy()
+    Vstar[:, np.arange(3), np.arange(3)] *= damp
+    Vinv = np.zeros_like(V)
+    for p in range(m):
+        if np.prod(np.diag(Vstar[p])) != 0.0 and np.linalg.det(Vstar[p]) > 0.0:
+            Vinv[p] = np.linalg.inv(Vstar[p])
+    Wbig = np.zeros((6 * nf, 3 * m))
+    for k in np.flatnonzero(live & (mrow >= 0)):
+        Wbig[6 * mrow[k]:6 * mrow[k] + 6, 3 * mpt[k]:3 * mpt[k] + 3] += W[k]
+    Vbig = np.zeros((3 * m, 3 * m))
+    for p in range(m):
+        Vbig[3 * p:3 * p + 3, 3 * p:3 * p + 3] = Vinv[p]
+    Ubig = np.zeros((6 * nf, 6 * nf))
+    for r in range(nf):
+        Ubig[6 * r:6 * r + 6, 6 * r:6 * r + 6] = Ustar[r]
+    S = Ubig - Wbig @ Vbig @ Wbig.T
+    rhs = ea.ravel() - Wbig @ Vbig @ eb.ravel()
+    return S, rhs, Vinv
+
+
+def ba_backsub_ref(Vinv, eb, W, live, mrow, mpt, dcam):
+    m = Vinv.shape[0]
+    v = eb.copy()
+    k = np.flatnonzero(live & (mrow >= 0))
+    np.add.at(v, mpt[k], -np.einsum("kab,ka->kb", W[k], dcam.reshape(-1, 6)[mrow[k]]))
+    return np.einsum("pab,pb->pa", Vinv, v).reshape(m, 3)
+
+
+def ba_pair_script_ref(pt_start, order, mrow):
+    """(r_a, r_b) of every free-camera pair sharing a point, in ``ba_schur``'s walk order."""
+    pairs = []
+    for p in range(len(pt_start) - 1):
+        rows = mrow[order[pt_start[p]:pt_start[p + 1]]]
+        rows = rows[rows >= 0]
+        pairs += [(rows[a], rows[b]) for a in range(len(rows)) for b in range(a)]
+    return np.array(pairs, dtype=np.int64).reshape(-1, 2)

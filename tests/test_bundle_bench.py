@@ -1,0 +1,21 @@
+"""``ptam bench ba``: the Table 2 layout and its one machine-readable summary line (timings are not asserted)."""
+
+import re
+
+from ptam.config import default_config
+from ptam.eval import bench_ba
+
+
+def test_bench_reports_buckets_and_summary_line(monkeypatch):
+    monkeypatch.setattr(bench_ba, "BENCH_KEYFRAMES", (10, 50, 100))
+    monkeypatch.setattr(bench_ba, "LOCAL_REPEATS", 1)
+    lines = []
+    result = bench_ba.run_ba_benchmark(default_config(), out=lines.append)
+    summary = [ln for ln in lines if ln.startswith("local_ba_ms_2_49=")]
+    assert len(summary) == 1 and lines[-1] == summary[0]
+    keys = ("local_ba_ms_2_49", "global_ba_ms_2_49", "global_ba_ms_50_99", "global_ba_ms_100_149")
+    assert re.fullmatch(" ".join(rf"{k}=\d+\.\d" for k in keys), summary[0])
+    assert all(result[k] > 0 for k in keys)
+    # Every map size converged; the 100-keyframe map has 40 points per keyframe pair.
+    assert [r["keyframes"] for r in result["rows"]] == [10, 50, 100]
+    assert all(r["global_converged"] for r in result["rows"]) and result["rows"][2]["points"] == 40 * 99

@@ -1,0 +1,73 @@
+"""Bundle adjustment runs beside the tracker: it must not hold the GIL for long (DESIGN: concurrency)."""
+
+import threading
+import time
+
+import numpy as np
+
+from ptam.config import default_config
+from ptam.eval.bench_ba import synthetic_workspace_problem
+from ptam.kernels.camproj import project_points_jac
+from ptam.mapping.bundle import Bundle
+
+ROUNDS = 4
+
+
+def test_bundle_releases_the_gil():
+    """Throughput of a numba nogil kernel looping in a second thread, while this thread runs BA, compared with
+    while this thread runs the same kind of GIL-free kernel for as long. The machine has 2 cores shared with
+    other jobs, so two busy threads slow each other whatever the GIL does; the conditions are interleaved in
+    short windows so that changing background load hits them alike."""
+    prob = synthetic_workspace_problem(20, 1000, seed=3, outlier_fraction=0.10)
+    bundle = Bundle(prob.camera, default_config().bundle)
+    fixed = np.zeros(20, bool)
+    fixed[0] = True
+    cam = prob.camera.kernel_params()
+    rng = np.random.default_rng(0)
+    Xc = np.c_[rng.uniform(-1, 1, (50_000, 2)), rng.uniform(1, 4, 50_000)]
+    other = Xc.copy()
+
+    def ba():
+        bundle.adjust(prob.poses_init, prob.points_init, prob.meas_kf, prob.meas_pt, prob.meas_xy,
+                      prob.meas_level, fixed)
+
+    def for_seconds(work, seconds):
+        t0 = time.perf_counter()
+        while time.perf_counter() - t0 < seconds:
+            work()
+
+    ba()
+    project_points_jac(cam, Xc)
+    stop = threading.Event()
+    calls = [0]
+
+    def loop():
+        while not stop.is_set():
+            project_points_jac(cam, Xc)
+            calls[0] += 1
+
+    th = threading.Thread(target=loop)
+    th.start()
+    counted = {"ba": [0, 0.0], "nogil": [0, 0.0], "alone": [0, 0.0]}
+    try:
+        for _ in range(ROUNDS):
+            seconds = None
+            for name in counted:
+                c0, t0 = calls[0], time.perf_counter()
+                if name == "ba":
+                    ba()
+                elif name == "nogil":
+                    for_seconds(lambda: project_points_jac(cam, other), seconds)
+                else:
+                    time.sleep(seconds)
+                dt = time.perf_counter() - t0
+                seconds = seconds or dt
+                counted[name][0] += calls[0] - c0
+                counted[name][1] += dt
+    finally:
+        stop.set()
+        th.join()
+    rate = {k: n / t for k, (n, t) in counted.items()}
+    print(f"kernel calls/s alone {rate['alone']:.0f}, beside a nogil kernel {rate['nogil']:.0f}, "
+          f"beside BA {rate['ba']:.0f} (ratio to alone {rate['ba'] / rate['alone']:.2f})")
+    assert rate["ba"] >= 0.7 * rate["nogil"]
