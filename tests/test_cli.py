@@ -60,7 +60,7 @@ def test_run_checks_calibration(tmp_path, capsys):
     calib.update(width=64, height=48, cx=31.5, cy=23.5)
     (tmp_path / "camera.yaml").write_text(yaml.safe_dump(calib))
     code, err = run_in_process(capsys, "--dataset", str(tmp_path))
-    assert code == 2 and err == "ptam: error: ptam run: tracking is not implemented yet"
+    assert code == 2 and err == "ptam: error: image of shape (48, 64) is too small for a 4-level pyramid"
 
     code, err = run_in_process(capsys, "--dataset", str(tmp_path), "--calibration", str(tmp_path / "none.yaml"))
     assert code == 2 and "calibration file not found" in err
@@ -69,3 +69,18 @@ def test_run_checks_calibration(tmp_path, capsys):
 def test_run_unopenable_camera(capsys):
     code, err = run_in_process(capsys, "--camera", "v4l2:/dev/video99")
     assert code == 2 and err == "ptam: error: cannot open camera v4l2:/dev/video99"
+
+
+def test_run_without_texture_ends_cleanly_with_an_empty_trajectory(tmp_path, capsys):
+    """PTAM §6.1 needs texture and motion: black frames, or too few frames, cannot initialise."""
+    for i in range(3):
+        cv2.imwrite(str(tmp_path / f"{i:04d}.png"), np.zeros((480, 640), np.uint8))
+    calib = {"model": "fov", "width": 640, "height": 480, "fx": 384.0, "fy": 384.0, "cx": 319.5, "cy": 239.5,
+             "omega": 0.9}
+    (tmp_path / "camera.yaml").write_text(yaml.safe_dump(calib))
+    traj = tmp_path / "traj.txt"
+    code = cli_main(["run", "--dataset", str(tmp_path), "--no-viewer", "--mode", "sync", "--trajectory", str(traj)])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "initialisation did not succeed: too few corners" in out
+    assert [line for line in traj.read_text().splitlines() if not line.startswith("#")] == []

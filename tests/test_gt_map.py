@@ -19,15 +19,15 @@ def scene():
 
 @pytest.fixture(scope="module")
 def gt(scene):
-    # ~1040 points qualify in these three keyframes: a cap of 1000 exercises the subset
-    return build_gt_map(scene, CFG, kf_every=20, max_points=1000, frames=range(0, 60))
+    # ~880 points qualify in these three keyframes: a cap of 800 exercises the subset
+    return build_gt_map(scene, CFG, kf_every=20, max_points=800, frames=range(0, 60))
 
 
 def test_points_lie_on_the_surface_at_their_source_pixel(scene, gt):
     s = gt.snapshot()
     assert s.n_keyframes == 3 and np.array_equal([k.timestamp for k in s.keyframes], scene.timestamps[[0, 20, 40]])
     assert np.allclose(s.kf_T_cw, se3.inv(scene.poses_T_wc[[0, 20, 40]]))
-    assert s.n_points == 1000 and np.all(np.bincount(s.source_level, minlength=4) > 10)
+    assert s.n_points == 800 and np.all(np.bincount(s.source_level, minlength=4) > 10)
     src0 = level_to_zero(s.source_xy, s.source_level)
     T = s.kf_T_cw[s.source_kf]
     Xc = np.einsum("nij,nj->ni", T[:, :3, :3], s.X) + T[:, :3, 3]

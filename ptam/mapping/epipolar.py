@@ -1,7 +1,7 @@
 """New map points by epipolar search between a new keyframe and its closest keyframe (PTAM §6.2).
 
 PTAM code (``MapMaker::AddPointEpipolar``): a candidate's viewing ray from the source keyframe is cut to
-the depth prior [max(w, mean − σ), min(40·w, mean + σ)] of the source keyframe's scene depth (w is the
+the depth prior (in z) [max(w, mean − σ), min(40·w, mean + σ)] of the source keyframe's scene depth (w is the
 stereo-initialisation baseline), projected into the target keyframe's unit plane, and searched there
 among FAST corners of the same pyramid level within (4 + 2^level) pixels of the line, by zero-mean SSD
 against the unwarped 8×8 source patch. The winner is refined by inverse-compositional sub-pixel search
@@ -52,8 +52,10 @@ def epipolar_matches(camera, T_src, T_tgt, src_pyr, tgt_pyr, depth_mean: float, 
         return empty
     cand_xy = np.asarray(cand_xy, np.float64)
     root = level_to_zero(cand_xy, level)
+    # Rays scaled to z = 1 in the source camera: the depth prior is over z (the keyframe's depth statistics
+    # are of z), so it is applied along the ray in z, not in range; with a wide-angle lens the two differ by
+    # 1/cos of the off-axis angle (PTAM's code uses unit-length rays).
     ray_s = np.concatenate([camera.unproject(root), np.ones((len(root), 1))], axis=1)
-    ray_s /= np.linalg.norm(ray_s, axis=1, keepdims=True)
     T_ts = T_tgt @ se3.inv(T_src)
     dirn = ray_s @ T_ts[:3, :3].T
     centre = T_ts[:3, 3]

@@ -1,9 +1,10 @@
 """The dominant plane of the map, found by RANSAC and refined by PCA (PTAM §6.1, code ``CalcPlaneAligner``).
 
 Many triples of points hypothesise planes, scored by the sum of point distances truncated at the inlier
-distance (PTAM code: MSAC with a 0.05 cap in map units, where the stereo baseline is 0.1); the consensus set's mean and the smallest eigenvector of its covariance give the refined plane. The aligner
-is the rigid transform that puts the plane at z = 0 with +z towards a reference point (the camera), so AR
-content stands on the plane, facing the user.
+distance (PTAM code: MSAC with a 0.05 cap in map units, where the stereo baseline is 0.1); the consensus
+set's mean and the smallest eigenvector of its covariance give the refined plane. The aligner is the rigid
+transform that puts the plane at z = 0 with +z towards a reference point (the camera), so AR content stands
+on the plane, facing the user.
 """
 
 from __future__ import annotations
