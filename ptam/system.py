@@ -59,15 +59,26 @@ class RunStats:
 
 
 class System:
-    def __init__(self, camera, cfg, mode: str | None = None, init_frames: tuple[int, int] | None = None):
+    """``map_``: start from an existing map (e.g. loaded from a file) instead of initialising; the tracker starts
+    at its first keyframe with the coarse stage forced. ``localize_only``: track against the map without adding
+    keyframes (the mapper never runs). ``observers``: callables ``f(outcome, system)`` run after every frame in
+    the tracker's thread (the viewer); they must be cheap and must not block."""
+
+    def __init__(self, camera, cfg, mode: str | None = None, init_frames: tuple[int, int] | None = None,
+                 map_=None, localize_only: bool = False):
         self.camera = camera
         self.cfg = cfg
         self.mode = mode or cfg.system.mode
         self.init_frames = init_frames
+        self.localize_only = localize_only
         self.tracker = Tracker(camera, cfg)
-        self.mapper = MapMaker(camera, cfg)
+        self.mapper = MapMaker(camera, cfg, map_)
         self.trails = TrailTracker(cfg.init, cfg.image)
         self.state = INITIALISING
+        self.observers: list = []
+        if self.mapper.initialised:
+            self.state = TRACKING
+            self.tracker.set_pose(self.mapper.map.kf_T_cw[0], recovered=True)
         self.trajectory: list[tuple[float, np.ndarray]] = []  # (timestamp, T_wc) per tracked frame
         self.stats = RunStats()
         self._first = None            # (pyramid, timestamp, index) of the first stereo keyframe
@@ -80,7 +91,7 @@ class System:
 
     # -- threads -------------------------------------------------------------------------------------------
     def start(self) -> System:
-        if self.mode != "sync" and self._thread is None:
+        if self.mode != "sync" and not self.localize_only and self._thread is None:
             self._thread = threading.Thread(target=self._mapper_loop, name="ptam-mapper", daemon=True)
             self._thread.start()
         return self
@@ -123,6 +134,8 @@ class System:
         else:
             out = self._track(frame)
         out.process_ms = 1e3 * (time.perf_counter() - t0)
+        for observe in self.observers:
+            observe(out, self)
         return out
 
     def _track(self, frame, record: bool = True) -> FrameOutcome:
@@ -143,7 +156,7 @@ class System:
         """PTAM §6.2 (code ``Tracker::NeedNewKeyFrame`` + ``MapMaker::NeedNewKeyFrame``)."""
         m = self.cfg.mapper
         kf = res.keyframe
-        if not (res.quality == GOOD and kf.frames_since_keyframe > m.kf_min_frames
+        if self.localize_only or not (res.quality == GOOD and kf.frames_since_keyframe > m.kf_min_frames
                 and self.mapper.queue_size() < m.kf_max_queue
                 and self.mapper.need_new_keyframe(kf.nearest_keyframe_distance, kf.mean_scene_depth)):
             return False
