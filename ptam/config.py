@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import functools
 import os
 import typing
 from dataclasses import dataclass, fields
@@ -119,6 +120,7 @@ class MapperConfig:
     epipolar_min_line_length: float
     epipolar_along_margin: float
     epipolar_along_clip: float
+    epipolar_box_samples: int
     epipolar_band_px: float
     refind_radius_px: int
     local_ba_min_keyframes: int
@@ -245,8 +247,15 @@ _CHOICES = {("calibrate", "detector"): ("sb", "classic"),
             ("init", "essential_method"): ("default", "magsac", "accurate", "prosac", "ransac")}
 
 
+@functools.cache
 def _section_types() -> dict[str, type]:
-    return {f.name: typing.get_type_hints(Config)[f.name] for f in fields(Config)}
+    hints = typing.get_type_hints(Config)
+    return {f.name: hints[f.name] for f in fields(Config)}
+
+
+@functools.cache
+def _field_types(section_cls) -> dict[str, type]:
+    return typing.get_type_hints(section_cls)
 
 
 def _suggest(name: str, options) -> str:
@@ -294,10 +303,10 @@ def _set(base: dict, sec: str, key: str, value, source: str) -> None:
     sections = _section_types()
     if sec not in sections:
         raise ConfigError(f"{source}: unknown config section '{sec}'{_suggest(sec, sections)}")
-    hints = typing.get_type_hints(sections[sec])
+    hints = _field_types(sections[sec])
     if key not in hints:
         options = [f"{sec}.{k}" for k in hints] + [f"{s}.{k}" for s in sections
-                                                    for k in typing.get_type_hints(sections[s])]
+                                                    for k in _field_types(sections[s])]
         raise ConfigError(f"{source}: unknown config key '{sec}.{key}'{_suggest(f'{sec}.{key}', options)}")
     value = _coerce(f"{sec}.{key}", value, hints[key])
     choices = _CHOICES.get((sec, key))

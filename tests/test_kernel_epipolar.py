@@ -2,6 +2,7 @@
 
 import numpy as np
 
+from ptam.image.pyramid import row_lut
 from ptam.kernels.epipolar import epipolar_search, epipolar_search_ref
 
 
@@ -27,9 +28,16 @@ def test_kernel_matches_reference():
     lo = rng.uniform(-1.0, -0.2, n)
     hi = rng.uniform(0.2, 1.0, n)
     max_perp = np.full(n, 0.2)
-    best, score = epipolar_search(img, corners, plane, templates, normal, dist, along, lo, hi, max_perp, 1e9)
-    best_r, score_r = epipolar_search_ref(img, corners, plane, templates, normal, dist, along, lo, hi, max_perp, 1e9)
-    assert (best >= 0).sum() > n // 2
+    # Half the candidates search the whole image, half a random box (partly outside the image).
+    box = np.tile([-5, -5, 90, 70], (n, 1))
+    box[1::2, :2] = rng.integers(-10, 50, (n // 2, 2))
+    box[1::2, 2:] = box[1::2, :2] + rng.integers(5, 60, (n // 2, 2))
+    lut = row_lut(corners, img.shape[0])
+    best, score = epipolar_search(img, corners, plane, lut, box, templates, normal, dist, along, lo, hi, max_perp,
+                                  1e9)
+    best_r, score_r = epipolar_search_ref(img, corners, plane, box, templates, normal, dist, along, lo, hi,
+                                          max_perp, 1e9)
+    assert (best >= 0).sum() > n // 4
     assert np.array_equal(best, best_r)
     ok = best >= 0
     assert np.allclose(score[ok], score_r[ok], rtol=1e-6, atol=1e-2)

@@ -14,4 +14,15 @@ def main(args, cfg) -> int:
         from ..eval.bench_tracking import run_tracking_benchmark
         run_tracking_benchmark(cfg, args.scene)
         return 0
+    if args.what == "mapping":
+        from ..eval.bench_mapping import run_mapping_benchmark
+        run_mapping_benchmark(cfg, args.scene)
+        return 0
+    if args.what == "all":
+        from ..eval.bench_mapping import run_mapping_benchmark
+        from ..eval.bench_tracking import run_tracking_benchmark
+        run_tracking_benchmark(cfg, args.scene)
+        print()
+        run_mapping_benchmark(cfg, args.scene)
+        return 0
     raise PtamError(f"ptam bench {args.what}: not implemented yet")

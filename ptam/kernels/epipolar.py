@@ -4,7 +4,9 @@ PTAM code (``MapMaker::AddPointEpipolar``): the target level's FAST corners, unp
 plane, are kept when their perpendicular distance to the epipolar line is within ``max_perp`` and their
 position along it lies in [lo, hi]; the lowest zero-mean SSD against the unwarped source template wins
 when below ``max_ssd``. Straight lines on the unit plane stay exact under lens distortion, which is why
-the test is made there and not in pixels. ``epipolar_search_ref`` is the numpy reference.
+the test is made there and not in pixels. Only corners inside a per-candidate pixel box around the segment
+(rows through the row look-up table, PTAM §6.5) are examined, so a level with tens of thousands of corners
+costs a few hundred tests per candidate. ``epipolar_search_ref`` is the numpy reference.
 """
 
 from __future__ import annotations
@@ -14,10 +16,12 @@ from numba import njit
 
 
 @njit(nogil=True, cache=True)
-def epipolar_search(img, corners, corners_plane, templates, normal, dist, along, lo, hi, max_perp, max_ssd):
-    """img: target level (H, W) uint8; corners (K, 2) int32 level pixels with unit-plane positions
-    corners_plane (K, 2); per candidate: template (size, size) zero-mean, line normal (2,), offset ``dist``
-    (normal·p = dist on the line), direction ``along`` (2,), extent [lo, hi] along it.
+def epipolar_search(img, corners, corners_plane, row_lut, box, templates, normal, dist, along, lo, hi, max_perp,
+                    max_ssd):
+    """img: target level (H, W) uint8; corners (K, 2) int32 level pixels (sorted by row, ``row_lut`` (H+1,))
+    with unit-plane positions corners_plane (K, 2); per candidate: pixel box (x0, y0, x1, y1) int, template
+    (size, size) zero-mean, line normal (2,), offset ``dist`` (normal·p = dist on the line), direction
+    ``along`` (2,), extent [lo, hi] along it.
 
     Returns the best corner index (n,) int64 (−1 when none) and its score (n,).
     """
@@ -34,7 +38,11 @@ def epipolar_search(img, corners, corners_plane, templates, normal, dist, along,
             for c in range(size):
                 tsq += templates[k, r, c] * templates[k, r, c]
         bs = max_ssd
-        for j in range(corners.shape[0]):
+        y0 = min(max(box[k, 1], 0), H - 1)
+        y1 = min(max(box[k, 3], 0), H - 1)
+        for j in range(row_lut[y0], row_lut[y1 + 1]):
+            if corners[j, 0] < box[k, 0] or corners[j, 0] > box[k, 2]:
+                continue
             px = corners_plane[j, 0]
             py = corners_plane[j, 1]
             d = dist[k] - (px * normal[k, 0] + py * normal[k, 1])
@@ -65,7 +73,7 @@ def epipolar_search(img, corners, corners_plane, templates, normal, dist, along,
     return best, score
 
 
-def epipolar_search_ref(img, corners, corners_plane, templates, normal, dist, along, lo, hi, max_perp, max_ssd):
+def epipolar_search_ref(img, corners, corners_plane, box, templates, normal, dist, along, lo, hi, max_perp, max_ssd):
     """Numpy reference: every candidate against every corner by broadcasting."""
     n, size = templates.shape[:2]
     h = size // 2
@@ -81,7 +89,8 @@ def epipolar_search_ref(img, corners, corners_plane, templates, normal, dist, al
     for k in range(n):
         d = dist[k] - corners_plane @ normal[k]
         t = corners_plane @ along[k]
-        ok = inside & (d * d <= max_perp[k] ** 2) & (t >= lo[k]) & (t <= hi[k])
+        in_box = (x >= box[k, 0]) & (x <= box[k, 2]) & (y >= box[k, 1]) & (y <= box[k, 3])
+        ok = inside & in_box & (d * d <= max_perp[k] ** 2) & (t >= lo[k]) & (t <= hi[k])
         if not ok.any():
             continue
         T = templates[k].astype(np.float64)

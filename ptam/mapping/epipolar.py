@@ -16,7 +16,7 @@ import numpy as np
 
 from ..geometry import se3
 from ..geometry.triangulation import triangulate_two_view
-from ..image.pyramid import level_to_zero
+from ..image.pyramid import level_to_zero, zero_to_level
 from ..kernels.epipolar import epipolar_search
 from ..kernels.patch_subpix import refine_subpix
 from ..kernels.patch_template import make_templates
@@ -40,6 +40,24 @@ def one_pixel_dist(camera) -> float:
 def unit_plane_corners(camera, pyramid, level: int) -> np.ndarray:
     """The level's FAST corners on the unit plane (PTAM code caches these per keyframe level)."""
     return camera.unproject(level_to_zero(pyramid.corners[level].astype(np.float64), level))
+
+
+def _search_boxes(camera, normal, dist, along, lo, hi, level: int, band_px: float, samples: int) -> np.ndarray:
+    """Pixel boxes (n, 4) (x0, y0, x1, y1) at ``level`` that hold each search segment's band: the segment is
+    sampled on the unit plane, projected through the lens, and the box padded by the band plus the bulge the
+    lens can give the curve between two samples (bounded by the sample spacing)."""
+    t = np.linspace(0.0, 1.0, samples)
+    ts = lo[:, None] + (hi - lo)[:, None] * t[None, :]
+    pts = along[:, None, :] * ts[..., None] + (normal * dist[:, None])[:, None, :]
+    uv = camera.project(np.concatenate([pts, np.ones(pts.shape[:2] + (1,))], axis=-1).reshape(-1, 3))
+    uv = zero_to_level(uv, level).reshape(len(lo), samples, 2)
+    step = np.linalg.norm(np.diff(uv, axis=1), axis=2).max(axis=1) if samples > 1 else np.zeros(len(lo))
+    pad = (band_px / (1 << level) + 1.0 + 0.5 * step)[:, None]
+    lo_xy = np.floor(np.nanmin(uv, axis=1) - pad)
+    hi_xy = np.ceil(np.nanmax(uv, axis=1) + pad)
+    big = np.iinfo(np.int32).max // 2
+    box = np.concatenate([np.clip(lo_xy, -big, big), np.clip(hi_xy, -big, big)], axis=1)
+    return np.nan_to_num(box, nan=0.0).astype(np.int64)
 
 
 def epipolar_matches(camera, T_src, T_tgt, src_pyr, tgt_pyr, depth_mean: float, depth_sigma: float, level: int,
@@ -92,10 +110,14 @@ def epipolar_matches(camera, T_src, T_tgt, src_pyr, tgt_pyr, depth_mean: float, 
     n = len(idx)
     if n == 0:
         return empty
-    max_perp = np.full(n, one_pixel_dist(camera) * (m.epipolar_band_px + (1 << level)))
+    band_px = m.epipolar_band_px + (1 << level)
+    max_perp = np.full(n, one_pixel_dist(camera) * band_px)
     max_ssd = p.max_ssd_per_pixel * p.size * p.size
+    box = _search_boxes(camera, normal[idx], dist[idx], along[idx], lo[idx], hi[idx], level, band_px,
+                        m.epipolar_box_samples)
     best, _ = epipolar_search(tgt_pyr.levels[level], tgt_pyr.corners[level], tgt_plane_corners,
-                              templates, normal[idx], dist[idx], along[idx], lo[idx], hi[idx], max_perp, max_ssd)
+                              tgt_pyr.row_lut[level], box, templates, normal[idx], dist[idx], along[idx], lo[idx],
+                              hi[idx], max_perp, max_ssd)
     found = best >= 0
     idx, templates, best = idx[found], templates[found], best[found]
     if len(idx) == 0:

@@ -14,6 +14,7 @@ import logging
 from collections import deque
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from ..image.pyramid import Pyramid, zero_to_level
@@ -136,10 +137,13 @@ class MapMaker:
         self.recent_converged = self.full_converged = False
         self.stats["keyframes_added"] += 1
 
-    def _unmeasured_points(self, k: int) -> np.ndarray:
+    def _measured_in(self, k: int) -> np.ndarray:
         measured = np.zeros(self.map.n_points_total, bool)
         measured[self.map.meas_pt[self.map.meas_kf == k]] = True
-        return np.flatnonzero(~measured & ~self.map.bad)
+        return measured
+
+    def _unmeasured_points(self, k: int) -> np.ndarray:
+        return np.flatnonzero(~self._measured_in(k) & ~self.map.bad)
 
     def closest_keyframe(self, k: int) -> int:
         c = self.map.camera_centres
@@ -155,9 +159,15 @@ class MapMaker:
         xy, _ = candidates(img, self.cfg.image.fast_thresholds[level], self.cfg.image)
         busy = (m.meas_kf == k) & (m.meas_level == level)
         if busy.any() and len(xy):
-            b = np.rint(zero_to_level(m.meas_xy[busy], level))
-            d2 = ((xy[:, None, :] - b[None, :, :]) ** 2).sum(axis=2)
-            xy = xy[d2.min(axis=1) >= self.cfg.mapper.candidate_min_dist_px ** 2]
+            # PTAM code ThinCandidates: drop candidates near this level's measurements (a distance transform of
+            # the measured pixels instead of PTAM's all-pairs loop).
+            h, w = img.shape
+            b = np.rint(zero_to_level(m.meas_xy[busy], level)).astype(np.int64)
+            b = b[(b[:, 0] >= 0) & (b[:, 1] >= 0) & (b[:, 0] < w) & (b[:, 1] < h)]
+            free = np.full((h, w), 255, np.uint8)
+            free[b[:, 1], b[:, 0]] = 0
+            dist = cv2.distanceTransform(free, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+            xy = xy[dist[xy[:, 1], xy[:, 0]] >= self.cfg.mapper.candidate_min_dist_px]
         if len(xy) == 0:
             return 0
         t = self.closest_keyframe(k)
@@ -190,9 +200,11 @@ class MapMaker:
         return a
 
     def _refind_in_keyframe(self, k: int, pts: np.ndarray, source=SRC_REFIND) -> int:
+        """Search ``pts`` in keyframe k, skipping points it measures already or must never retry (PTAM code
+        ``ReFind_Common``)."""
         never = self._never(k)
-        pts = np.asarray(pts, dtype=np.int64)
-        pts = pts[~never[pts]]
+        pts = np.unique(np.asarray(pts, dtype=np.int64))
+        pts = pts[~never[pts] & ~self._measured_in(k)[pts]]
         if len(pts) == 0:
             return 0
         m = self.map
@@ -210,9 +222,7 @@ class MapMaker:
         for k in range(self.map.n_keyframes):
             if self._abort():
                 return
-            measured = np.zeros(self.map.n_points_total, bool)
-            measured[self.map.meas_pt[self.map.meas_kf == k]] = True
-            self._refind_in_keyframe(k, pts[~measured[pts]])
+            self._refind_in_keyframe(k, pts)
 
     def _refind_from_failure_queue(self) -> None:
         batch, self._failure_queue = self._failure_queue, []
@@ -243,7 +253,9 @@ class MapMaker:
             adjust_points = ~m.bad
         res = self.bundle.adjust(m.kf_T_cw, m.X, m.meas_kf, m.meas_pt, m.meas_xy, m.meas_level, fixed_poses,
                                  adjust_points, abort=self._abort)
-        self.stats["local_ba" if recent else "global_ba"].append(1e3 * res.phase_seconds.get("total", 0.0))
+        # (keyframes in the map, ms, converged) per run, for PTAM Table 2's buckets by map size.
+        self.stats["local_ba" if recent else "global_ba"].append(
+            (n, 1e3 * res.phase_seconds.get("total", 0.0), bool(res.converged)))
         if res.failed:
             log.warning("bundle adjustment could not factorise the reduced system; the map is probably corrupt")
             self.recent_converged = self.full_converged = True
