@@ -75,6 +75,26 @@ class TrackerConfig:
 
 
 @dataclass(frozen=True)
+class RotationConfig:
+    enabled: bool
+    blur_sigma: float
+    iterations: int
+    intensity_offset: bool
+    keep_axial_velocity: bool
+    sample_radius_px: float
+
+
+@dataclass(frozen=True)
+class RelocConfig:
+    enabled: bool
+    blur_sigma: float
+    iterations: int
+    max_score: float
+    suspend_when_rapid: bool
+    rapid_rotation_deg: float
+
+
+@dataclass(frozen=True)
 class CaptureConfig:
     default_fps: float
     camera_size: list[int]
@@ -148,6 +168,7 @@ class BundleConfig:
     lambda_decrease: float
     lambda_increase_initial: float
     lambda_increase_growth: float
+    lambda_max: float
     max_iterations: int
     converge_squared_update: float
     min_tukey_sigma: float
@@ -218,10 +239,30 @@ class SynthCalibrationConfig:
 
 
 @dataclass(frozen=True)
+class ViewerConfig:
+    queue_size: int
+    grpc_port: int
+    web_port: int
+    serve_start_timeout_s: float
+    server_memory_limit: str
+    jpeg_quality: int
+    thumbnail_level: int
+    frustum_depth: float
+    point_radius_ui: float
+    measurement_radius_px: float
+    failed_cross_px: float
+    grid_spacing: float
+    grid_half_cells: int
+    status_interval_s: float
+
+
+@dataclass(frozen=True)
 class Config:
     image: ImageConfig
     patch: PatchConfig
     tracker: TrackerConfig
+    rotation: RotationConfig
+    reloc: RelocConfig
     capture: CaptureConfig
     init: InitConfig
     mapper: MapperConfig
@@ -232,6 +273,7 @@ class Config:
     system: SystemConfig
     calibrate: CalibrateConfig
     synth_calibration: SynthCalibrationConfig
+    viewer: ViewerConfig
 
     def replace(self, **changes: str) -> Config:
         """A copy with ``section.key`` values changed, e.g. ``cfg.replace(**{"tracker.max_patches": 500})``."""

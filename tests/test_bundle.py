@@ -146,3 +146,15 @@ def test_empty_and_bad_input(workspace):
         bad = prob.points_init.copy()
         bad[5, 1] = np.nan
         b.adjust(prob.poses_init, bad, *args[2:])
+
+
+def test_free_scale_gauge_survives_vanishing_damping():
+    """One fixed keyframe leaves the scale free: the reduced system is definite only through the damping, and
+    after many accepted steps (λ ← 0.3·λ each) it stops factorising. That must count as a rejected step, not a
+    failure, or the mapper throws its work away (seen on two_wall's global adjustments)."""
+    prob = synthetic_workspace_problem(6, 600, seed=5, outlier_fraction=0.0)
+    cfg = dataclasses.replace(CFG, max_iterations=80, converge_squared_update=1e-30, lambda_initial=1e-12)
+    res = run(prob, n_fixed=1, cfg=cfg)
+    assert not res.failed
+    assert res.accepted >= 5
+    assert res.sigma_dof < 1.1

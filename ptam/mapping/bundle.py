@@ -175,8 +175,17 @@ class Bundle:
                 try:
                     dcam = solver.solve(s.blocks, s.rhs) if len(free_idx) else np.zeros(0)
                 except np.linalg.LinAlgError:
-                    failed = True
-                    break
+                    # With one fixed keyframe the scale gauge is free and only the damping keeps the reduced
+                    # system definite; after many good steps λ may be too small for it to factorise. That is a
+                    # rejected step, not a corrupt map: raise λ and try again (failed only past lambda_max).
+                    lam *= nu
+                    nu *= cfg.lambda_increase_growth
+                    iterations += 1
+                    hit_max = iterations >= cfg.max_iterations
+                    failed = lam > cfg.lambda_max
+                    if failed:
+                        break
+                    continue
                 t2 = time.perf_counter()
                 phases["solve"] += t2 - t1
                 dpts = ba_backsub(s.Vinv, s.eb, s.W, s.live, st.mrow, st.pt_start, st.order, dcam)
