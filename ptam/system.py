@@ -6,9 +6,11 @@ handed over, which makes runs deterministic. The tracker reads ``mapper.snapshot
 ``MapSnapshot`` swapped atomically by the mapper) and takes no lock. An exception in the mapper thread is
 re-raised in the caller at the next frame or at :meth:`close`.
 
-Before a map exists the system initialises by itself (PTAM §6.1): trails start at the first frame and the
-second keyframe is taken when their median disparity passes ``init.auto_min_disparity_rel_focal`` × f, or at
-fixed frames (``init_frames``). A failure is logged with its reason and initialisation restarts.
+Before a map exists the system initialises (PTAM §6.1). With ``init_mode="key"`` (live cameras) the user's two
+key presses (:meth:`System.request_keyframe`) take the two keyframes, as in the paper. With ``"auto"`` (recorded
+sources) trails start at the first frame and the second keyframe is taken when their median disparity passes
+``init.auto_min_disparity_rel_focal`` × f, or at fixed frames (``init_frames``); a failure is logged with its
+reason and initialisation restarts. :meth:`System.reset` discards the map and initialises again.
 """
 
 from __future__ import annotations
@@ -45,6 +47,7 @@ class FrameOutcome:
     result: object = None
     keyframe_added: bool = False
     process_ms: float = 0.0
+    frame: object = None  # the capture Frame, for observers that show the image
 
 
 @dataclass
@@ -62,14 +65,19 @@ class System:
     """``map_``: start from an existing map (e.g. loaded from a file) instead of initialising; the tracker starts
     at its first keyframe with the coarse stage forced. ``localize_only``: track against the map without adding
     keyframes (the mapper never runs). ``observers``: callables ``f(outcome, system)`` run after every frame in
-    the tracker's thread (the viewer); they must be cheap and must not block."""
+    the tracker's thread (the viewer); they must be cheap and must not block. ``init_mode``: ``"auto"`` or
+    ``"key"`` (stereo initialisation keyframes taken by :meth:`request_keyframe`)."""
 
     def __init__(self, camera, cfg, mode: str | None = None, init_frames: tuple[int, int] | None = None,
-                 map_=None, localize_only: bool = False):
+                 map_=None, localize_only: bool = False, init_mode: str = "auto"):
+        if init_mode not in ("auto", "key"):
+            raise ValueError(f"init_mode must be 'auto' or 'key', got {init_mode!r}")
         self.camera = camera
         self.cfg = cfg
         self.mode = mode or cfg.system.mode
         self.init_frames = init_frames
+        self.init_mode = init_mode
+        self._key_pressed = False
         self.localize_only = localize_only
         self.tracker = Tracker(camera, cfg)
         self.mapper = MapMaker(camera, cfg, map_)
@@ -124,6 +132,32 @@ class System:
     def __exit__(self, *exc) -> None:
         self.close()
 
+    # -- user commands (called between frames, in the tracker's thread) ------------------------------------
+    def request_keyframe(self) -> None:
+        """The user's key press of stereo initialisation (PTAM §6.1): the first press takes the first keyframe
+        and starts the trails, the second takes the second keyframe and builds the map. Ignored in ``auto``
+        mode and once a map exists."""
+        self._key_pressed = self.init_mode == "key" and not self.mapper.initialised
+
+    @property
+    def init_started(self) -> bool:
+        """Stereo initialisation has its first keyframe and is following trails."""
+        return self._first is not None
+
+    def reset(self) -> None:
+        """PTAM's reset: discard the map, the trajectory and the tracker's state, then initialise again."""
+        restart = self._thread is not None
+        self.close()
+        self._stop.clear()
+        self.mapper = MapMaker(self.camera, self.cfg)
+        self.tracker.reset()
+        self.trails = TrailTracker(self.cfg.init, self.cfg.image)
+        self.state = INITIALISING
+        self.trajectory = []
+        self._first, self._init_frames, self._key_pressed = None, [], False
+        if restart:
+            self.start()
+
     # -- per frame -----------------------------------------------------------------------------------------
     def process(self, frame) -> FrameOutcome:
         self._check_mapper()
@@ -134,6 +168,7 @@ class System:
         else:
             out = self._track(frame)
         out.process_ms = 1e3 * (time.perf_counter() - t0)
+        out.frame = frame
         for observe in self.observers:
             observe(out, self)
         return out
@@ -190,14 +225,17 @@ class System:
         c = self.cfg.init
         pyramid = Pyramid.build(frame.image, self.cfg.image)
         idle = FrameOutcome(int(frame.index), float(frame.timestamp), INITIALISING, None)
+        key, self._key_pressed = self._key_pressed, False
         fixed = self.init_frames
+        restarts = self.init_mode == "auto" and fixed is None  # else each attempt waits for its own trigger
         if self._first is None:
-            if fixed is None or frame.index == fixed[0]:
+            start = key if self.init_mode == "key" else (fixed is None or frame.index == fixed[0])
+            if start:
                 self._restart_init(pyramid, frame, None)
             return idle
         n = self.trails.advance(pyramid)
         if n < c.min_trails:
-            if fixed is None:
+            if restarts:
                 self._restart_init(pyramid, frame, f"too few trails survive ({n} < {c.min_trails})")
             else:
                 self.last_failure = f"too few trails survive to frame {frame.index} ({n} < {c.min_trails})"
@@ -205,7 +243,10 @@ class System:
             return idle
         self._init_frames.append(frame)
         f = 0.5 * (self.camera.fx + self.camera.fy)
-        if fixed is not None:
+        if self.init_mode == "key":
+            if not key:
+                return idle
+        elif fixed is not None:
             if frame.index < fixed[1]:
                 return idle
         elif self.trails.median_disparity() < c.auto_min_disparity_rel_focal * f:
@@ -217,7 +258,7 @@ class System:
                                  self.trails.start_xy, self.trails.current_xy)
         except InitFailure as e:
             self.mapper = MapMaker(self.camera, self.cfg)
-            if fixed is None:
+            if restarts:
                 self._restart_init(pyramid, frame, str(e))
             else:
                 self.last_failure = str(e)
@@ -246,3 +287,18 @@ class System:
         self.state = TRACKING
         if self.mode != "sync":
             self._wake.set()
+
+
+def run_dataset(path, cfg, mode: str | None = None, **kwargs) -> System:
+    """Run a whole dataset folder (TUM/EuRoC/images with its ``camera.yaml``) through a System; returns it."""
+    from pathlib import Path
+
+    from .camera import load_camera
+    from .capture import open_dataset
+
+    path = Path(path)
+    camera = load_camera(path / "camera.yaml")
+    with open_dataset(path) as src, System(camera, cfg, mode=mode, **kwargs) as system:
+        for frame in src:
+            system.process(frame)
+    return system

@@ -7,12 +7,10 @@ deterministic; async mode runs the mapper in its own thread.
 import numpy as np
 import pytest
 
-from ptam.camera import load_camera
-from ptam.capture import open_dataset
 from ptam.config import load_config
-from ptam.eval import associate, ate, read_tum
+from ptam.eval.score import score_trajectory
 from ptam.synthetic import ensure_sequence
-from ptam.system import System
+from ptam.system import run_dataset
 
 
 @pytest.fixture(scope="module")
@@ -21,22 +19,12 @@ def short():
 
 
 def _run(d, mode):
-    cfg = load_config()
-    camera = load_camera(d / "camera.yaml")
-    with open_dataset(d) as src, System(camera, cfg, mode=mode) as system:
-        for frame in src:
-            system.process(frame)
-    return system
+    return run_dataset(d, load_config(), mode)
 
 
 def _score(d, system):
-    t_gt, T_gt = read_tum(d / "groundtruth.txt")
-    t = np.array([p[0] for p in system.trajectory])
-    T = np.array([p[1] for p in system.trajectory])
-    ig, ie = associate(t_gt, t, 0.01)
-    r = ate(T_gt[ig, :3, 3], T[ie, :3, 3])
-    length = float(np.linalg.norm(np.diff(T_gt[:, :3, 3], axis=0), axis=1).sum())
-    return len(ig) / len(t_gt), r.rmse, length
+    s = score_trajectory(d / "groundtruth.txt", system.trajectory)
+    return s.tracked_fraction, s.ate_rmse_m, s.path_length_m
 
 
 @pytest.fixture(scope="module")

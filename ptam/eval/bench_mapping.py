@@ -11,12 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..camera import load_camera
-from ..capture import open_dataset
 from ..synthetic import ensure_sequence
-from .associate import associate
-from .ate import ate
-from .trajectory import read_tum
+from .score import score_trajectory
 
 PTAM_TABLE2_MS = {"local": (170.0, 270.0, 440.0), "global": (380.0, 1700.0, 6900.0)}
 BUCKETS = ((2, 49), (50, 99), (100, 149))
@@ -24,23 +20,11 @@ PAPER_ATE_MM = 6.0
 
 
 def _run(cfg, seq, mode):
-    from ..system import System  # eval observes the system; imported late to keep `ptam eval` light
+    from ..system import run_dataset  # eval observes the system; imported late to keep `ptam eval` light
 
-    camera = load_camera(seq / "camera.yaml")
-    with open_dataset(seq) as src, System(camera, cfg, mode=mode) as system:
-        for frame in src:
-            system.process(frame)
-    return system
-
-
-def _ate(seq, system):
-    t_gt, T_gt = read_tum(seq / "groundtruth.txt")
-    if len(system.trajectory) < 3:
-        return float("nan"), 0.0
-    t = np.array([p[0] for p in system.trajectory])
-    T = np.array([p[1] for p in system.trajectory])
-    ig, ie = associate(t_gt, t, 0.01)
-    return 1e3 * ate(T_gt[ig, :3, 3], T[ie, :3, 3]).rmse, len(ig) / len(t_gt)
+    system = run_dataset(seq, cfg, mode)
+    score = score_trajectory(seq / "groundtruth.txt", system.trajectory)
+    return system, 1e3 * score.ate_rmse_m, score.tracked_fraction
 
 
 def _bucket_means(runs):
@@ -54,11 +38,9 @@ def _bucket_means(runs):
 def run_mapping_benchmark(cfg, scene: str = "two_wall", out=print) -> dict:
     seq = ensure_sequence(scene)
     out(f"running {scene} in sync mode ...")
-    sync = _run(cfg, seq, "sync")
+    sync, ate_mm, fraction = _run(cfg, seq, "sync")
     out(f"running {scene} in async mode ...")
-    asyn = _run(cfg, seq, "async")
-    ate_mm, fraction = _ate(seq, sync)
-    ate_async, fraction_async = _ate(seq, asyn)
+    asyn, ate_async, fraction_async = _run(cfg, seq, "async")
     snap = sync.mapper.snapshot
     st = sync.mapper.stats
     out("")
