@@ -5,6 +5,7 @@ from __future__ import annotations
 from ..errors import InputError
 from ..synthetic import ensure_sequence, list_scenes
 from ..synthetic.calibration import CALIBRATION_SCENE, is_calibration_scene, synth_calibration
+from ..synthetic.contact_sheet import contact_sheet
 from ..synthetic.sequence import copy_sequence
 
 
@@ -20,4 +21,6 @@ def main(args, cfg) -> int:
     src = ensure_sequence(args.scene, cache_dir=cfg.synthetic.cache_dir, video=args.video)
     out = copy_sequence(src, args.out, video=args.video)
     print(f"wrote {out} (cached in {src})")
+    if args.contact_sheet:
+        print(f"wrote {contact_sheet(out, args.contact_sheet)}")
     return 0
