@@ -4,6 +4,10 @@ PTAM code (``ApplyMotionModel``/``UpdateMotionModel``): the prior is exp(v)·E_C
 tracking, with Δ = ln(E_new·E_start⁻¹), v ← decay·(blend·Δ + (1 − blend)·v), so without measurements the
 camera slows and stops. The velocity's magnitude with its translation divided by the mean scene depth decides
 whether the camera is nearly stationary (§6.5: the coarse stage is then skipped).
+
+With the rotation estimator (Agility §6, §8) the prior's rotation is the image-based estimate, and its
+translation is dropped ("completely replaces the SLAM system's previous motion model"); PTAM code keeps the
+velocity along the optical axis (``keep_axial``), which the small-image alignment cannot see.
 """
 
 from __future__ import annotations
@@ -19,13 +23,23 @@ class MotionModel:
         self.blend = float(tracker_cfg.motion_blend)
         self.velocity = np.zeros(6)
         self.scaled_speed = 0.0
+        self.prior = np.zeros(6)  # the inter-frame motion of the last prediction
 
     def reset(self) -> None:
         self.velocity = np.zeros(6)
         self.scaled_speed = 0.0
+        self.prior = np.zeros(6)
 
-    def predict(self, T_cw: np.ndarray) -> np.ndarray:
-        return se3.exp(self.velocity) @ T_cw
+    def predict(self, T_cw: np.ndarray, rotation: np.ndarray | None = None, keep_axial: bool = False) -> np.ndarray:
+        """exp(v)·T_cw; with an estimated ``rotation`` (3,), v = (0, 0, v_z if ``keep_axial`` else 0, rotation)."""
+        v = self.velocity.copy()
+        if rotation is not None:
+            v[:2] = 0.0
+            if not keep_axial:
+                v[2] = 0.0
+            v[3:] = rotation
+        self.prior = v
+        return se3.exp(v) @ T_cw
 
     def update(self, T_start: np.ndarray, T_new: np.ndarray, mean_scene_depth: float) -> None:
         delta = se3.log(T_new @ se3.inv(T_start))

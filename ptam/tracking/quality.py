@@ -4,7 +4,8 @@ PTAM code (``AssessTrackingQuality``): good when found/attempted over all levels
 otherwise bad when the fraction among the "large" features (levels ≥ ``quality_large_min_level``, if more than
 ``quality_large_min_attempted`` were attempted; else all) is below ``quality_lost``; otherwise poor. Poor
 frames are tracked but may not become keyframes. Tracking is lost once ``lost_frames`` consecutive frames were
-bad (PTAM code: recovery starts when the count of bad frames reaches 3), until a frame is not bad.
+bad (PTAM code: recovery starts when the count of bad frames reaches 3), until a frame is not bad. During rapid
+camera motion failure detection is suspended (Agility §8): a bad frame then leaves the count as it is.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ class TrackingQuality:
     def lost(self) -> bool:
         return self.bad_frames >= self.cfg.lost_frames
 
-    def assess(self, attempted_per_level: np.ndarray, found_per_level: np.ndarray) -> str:
+    def assess(self, attempted_per_level: np.ndarray, found_per_level: np.ndarray, suspend: bool = False) -> str:
         cfg = self.cfg
         attempted, found = int(attempted_per_level.sum()), int(found_per_level.sum())
         if attempted == 0 or found == 0:
@@ -37,5 +38,8 @@ class TrackingQuality:
             large = (found_per_level[cfg.quality_large_min_level:].sum() / large_attempted
                      if large_attempted > cfg.quality_large_min_attempted else fraction)
             quality = GOOD if fraction > cfg.quality_good else BAD if large < cfg.quality_lost else POOR
-        self.bad_frames = self.bad_frames + 1 if quality == BAD else 0
+        if quality != BAD:
+            self.bad_frames = 0
+        elif not suspend:
+            self.bad_frames += 1
         return quality

@@ -1,6 +1,7 @@
 """The tracker: PTAM §5's per-frame procedure against a map snapshot.
 
-1. pyramid + FAST corners (keyframe preparation), prior pose from the motion model (§5.1);
+1. pyramid + FAST corners (keyframe preparation), prior pose from the motion model (§5.1), its rotation
+   replaced by the small-blurry-image rotation estimate when enabled (Agility §6, §8);
 2. project all good map points, keep the potentially visible set, compute each one's warp and search level
    (§5.2, §5.3);
 3.–4. coarse stage (§5.5): up to ``coarse_points`` points at the coarsest search levels, searched over a large
@@ -9,7 +10,8 @@
 5. fine stage: every remaining top-level point and a random subset of the others, up to ``max_patches``
    measurements in all, re-projected with the coarse pose, searched over a tight radius, with sub-pixel
    refinement from ``fine_subpix_min_level`` up;
-6. final pose from the coarse and fine measurements together (§5.4), then motion model and quality (§5.6).
+6. final pose from the coarse and fine measurements together (§5.4), then motion model and quality (§5.6);
+   failure detection is suspended while the prior rotates faster than ``reloc.rapid_rotation_deg`` (Agility §8).
 
 The tracker reads the immutable :class:`~ptam.map.snapshot.MapSnapshot` it is given and takes no lock. Per-point
 work is vectorised or in numba kernels; the Python code here handles whole arrays only.
@@ -30,6 +32,7 @@ from .patch_finder import PatchFinder
 from .pose_update import update_pose
 from .projection import project_points
 from .quality import BAD, GOOD, TrackingQuality
+from .rotation_estimator import RotationEstimator
 from .warp import patch_pixel_vectors, search_warps, template_matrices
 
 
@@ -97,6 +100,7 @@ class TrackResult:
     pyramid: Pyramid
     timings: StageTimings
     keyframe: KeyframeCandidate
+    rapid_motion: bool = False  # failure detection was suspended this frame (Agility §8)
 
     @property
     def T_wc(self) -> np.ndarray:
@@ -181,6 +185,7 @@ class Tracker:
         self.n_levels = cfg.image.levels
         self._cam = camera.kernel_params()
         self.motion = MotionModel(cfg.tracker)
+        self.rotation = RotationEstimator(camera, cfg.rotation)
         self.quality = TrackingQuality(cfg.tracker)
         self.finder = PatchFinder(cfg.patch)
         self._pixel_vectors_of = None
@@ -192,6 +197,7 @@ class Tracker:
         """Forget pose, velocity, quality history and the keyframe counter."""
         self.T_cw = np.eye(4)
         self.motion.reset()
+        self.rotation.reset()
         self.quality.reset()
         self.frames_since_keyframe = 0
         self.scene_depth = (None, 0.0)
@@ -203,6 +209,7 @@ class Tracker:
         frame runs the coarse stage with ``recovery_coarse_factor`` × points and radius (PTAM code)."""
         self.T_cw = np.array(T_cw, dtype=np.float64)
         self.motion.reset()
+        self.rotation.reset()  # the previous small image belongs to another pose
         self._force_coarse = bool(recovered)
 
     def keyframe_added(self) -> None:
@@ -210,8 +217,9 @@ class Tracker:
         self.frames_since_keyframe = 0
 
     # -- per frame ---------------------------------------------------------------------------------------
-    def track(self, image_or_frame, snapshot) -> TrackResult:
-        """Track one frame (a grey uint8 image or a capture ``Frame``) against ``snapshot``."""
+    def track(self, image_or_frame, snapshot, pyramid: Pyramid | None = None) -> TrackResult:
+        """Track one frame (a grey uint8 image or a capture ``Frame``) against ``snapshot``; ``pyramid``: the
+        frame's pyramid if already built (relocalisation needs it first)."""
         clock = _Clock()
         image = getattr(image_or_frame, "image", image_or_frame)
         index = int(getattr(image_or_frame, "index", -1))
@@ -220,11 +228,13 @@ class Tracker:
         if np.shape(image)[:2] != (self.camera.height, self.camera.width):
             raise InputError(f"tracker: image of shape {np.shape(image)} does not match the camera's "
                              f"{self.camera.width}x{self.camera.height}")
-        pyramid = Pyramid.build(image, self.cfg.image)
+        if pyramid is None:
+            pyramid = Pyramid.build(image, self.cfg.image)
+        rotation = self.rotation.estimate(pyramid) if self.cfg.rotation.enabled else None
         clock.lap(PREPARE)
 
         T_start = self.T_cw
-        T = self.motion.predict(T_start)
+        T = self.motion.predict(T_start, rotation, self.cfg.rotation.keep_axial_velocity)
         force, self._force_coarse = self._force_coarse, False
         batch = _Batch()
         did_coarse = False
@@ -326,7 +336,10 @@ class Tracker:
 
         if depth_mean is not None:
             self.motion.update(T_start, T, depth_mean)
-        quality = self.quality.assess(att_l, found_l)
+        reloc = self.cfg.reloc
+        prior_deg = np.degrees(np.linalg.norm(self.motion.prior[3:]))
+        rapid = reloc.suspend_when_rapid and prior_deg > reloc.rapid_rotation_deg
+        quality = self.quality.assess(att_l, found_l, suspend=rapid)
         self.T_cw = T
         self.frames_since_keyframe += 1
 
@@ -344,4 +357,4 @@ class Tracker:
             n_coarse_attempted=int(attempted[coarse].sum()), n_coarse_found=int(meas.found[coarse].sum()),
             n_fine_attempted=int(attempted[~coarse].sum()), n_fine_found=int(meas.found[~coarse].sum()),
             attempted_per_level=att_l, found_per_level=found_l, measurements=meas, pyramid=pyramid,
-            timings=clock.timings(), keyframe=kf)
+            timings=clock.timings(), keyframe=kf, rapid_motion=bool(rapid))
