@@ -27,10 +27,12 @@ class TrackingQuality:
     def lost(self) -> bool:
         return self.bad_frames >= self.cfg.lost_frames
 
-    def assess(self, attempted_per_level: np.ndarray, found_per_level: np.ndarray, suspend: bool = False) -> str:
+    def assess(self, attempted_per_level: np.ndarray, found_per_level: np.ndarray, suspend: bool = False,
+               force_bad: bool = False) -> str:
+        """``force_bad``: the frame is bad whatever its counts (PTAM code: too far from every keyframe)."""
         cfg = self.cfg
         attempted, found = int(attempted_per_level.sum()), int(found_per_level.sum())
-        if attempted == 0 or found == 0:
+        if attempted == 0 or found == 0 or force_bad:
             quality = BAD
         else:
             fraction = found / attempted

@@ -339,15 +339,17 @@ class Tracker:
         reloc = self.cfg.reloc
         prior_deg = np.degrees(np.linalg.norm(self.motion.prior[3:]))
         rapid = reloc.suspend_when_rapid and prior_deg > reloc.rapid_rotation_deg
-        quality = self.quality.assess(att_l, found_l, suspend=rapid)
-        self.T_cw = T
-        self.frames_since_keyframe += 1
-
         nearest, dist = -1, float("inf")
         if snapshot is not None and snapshot.n_keyframes:
             d = np.linalg.norm(snapshot.camera_centres - se3.inv(T)[:3, 3], axis=1)
             nearest = int(np.argmin(d))
             dist = float(d[nearest])
+        # PTAM code (IsDistanceToNearestKeyFrameExcessive): a pose far beyond every keyframe, in units of the
+        # initial stereo baseline, is not trusted however many patches matched.
+        too_far = dist > cfg.max_keyframe_distance_baselines * self.cfg.init.baseline_m
+        quality = self.quality.assess(att_l, found_l, suspend=rapid, force_bad=too_far and np.isfinite(dist))
+        self.T_cw = T
+        self.frames_since_keyframe += 1
         kf = KeyframeCandidate(quality == GOOD, self.frames_since_keyframe, nearest, dist,
                                float("nan") if depth_mean is None else depth_mean, depth_sigma)
         clock.lap(POSE)
