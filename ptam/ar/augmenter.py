@@ -1,0 +1,31 @@
+"""One augmented frame from a frame and its pose: the dominant plane, a scene and the renderer together."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry import se3
+from .plane import ArPlane
+from .renderer import Renderer
+from .scenes import make_scene
+
+
+class Augmenter:
+    """``T_pw``: the plane frame (world→plane) to start from; by default the world frame, whose z = 0 is the
+    dominant plane after stereo initialisation (PTAM §6.1)."""
+
+    def __init__(self, camera, cfg, scene: str | None = None, T_pw: np.ndarray | None = None):
+        self.plane = ArPlane(cfg.init, cfg.ar.plane_refresh_growth, T_pw)
+        self.scene = make_scene(scene or cfg.ar.scene, cfg.ar)
+        self.renderer = Renderer(camera, cfg.ar)
+        self._last_timestamp: float | None = None
+
+    def augment(self, image: np.ndarray, T_cw: np.ndarray, timestamp: float, snapshot=None) -> np.ndarray:
+        """BGR uint8 frame with the scene drawn for world→camera pose ``T_cw``; ``snapshot`` (the map) lets the
+        plane refresh as the map grows."""
+        self.plane.maybe_refresh(snapshot)
+        T_cp = np.asarray(T_cw, np.float64) @ se3.inv(self.plane.T_pw)
+        dt = 0.0 if self._last_timestamp is None else float(timestamp) - self._last_timestamp
+        self._last_timestamp = float(timestamp)
+        dl = self.scene.update(se3.inv(T_cp), dt)
+        return self.renderer.render(image, T_cp, dl)

@@ -1,0 +1,171 @@
+"""The AR overlay attached to a running ``System``, off the tracker's critical path (DESIGN.md, Concurrency).
+
+:class:`ArLayer` is a system observer: in the tracker's thread it only hands (frame image, T_cw, map snapshot)
+to its own worker thread through a bounded buffer of ``ar.queue_frames`` frames; the worker refreshes the
+plane, renders, writes the video and publishes ``latest`` for a viewer. Images are shared, not copied: pyramid
+and keyframe images are immutable once created.
+
+When the buffer is full — the worker is slower than the tracker for ``ar.queue_frames`` frames in a row — a
+layer that writes a video makes the tracker wait for a free slot, so the video stays drop-free (one frame per
+tracked frame); a layer without a video drops its oldest frame instead and never blocks tracking.
+
+Frames seen while the system initialises are kept (the last ``ar.init_buffer_frames``): when stereo
+initialisation succeeds, the system tracks the frames between the two keyframes retroactively (their poses go
+to its trajectory), and the layer augments them then, before the frame that completed initialisation — so the
+video has exactly one frame per trajectory pose.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import PtamError
+from ..geometry import se3
+from ..system import INITIALISING
+from .augmenter import Augmenter
+from .video import open_video_writer
+
+
+def frame_image(frame) -> np.ndarray:
+    """What the overlay is drawn on: the colour original when the source is colour, else the grey image."""
+    return frame.colour if frame.colour is not None else frame.image
+
+
+class ArLayer:
+    """Observer ``f(outcome, system)``; ``close()`` (or a ``with`` block) flushes the buffer and the video.
+
+    ``latest``: (frame index, timestamp, BGR image) of the newest augmented frame; ``listeners``: callables
+    ``f(index, timestamp, bgr)`` run in the worker thread after each frame (a viewer); ``fire()``: a key press
+    for the game.
+    """
+
+    def __init__(self, camera, cfg, scene: str | None = None, video_path: str | Path | None = None,
+                 fps: float | None = None, T_pw: np.ndarray | None = None):
+        self.augmenter = Augmenter(camera, cfg, scene, T_pw)
+        self.capacity = max(int(cfg.ar.queue_frames), 1)
+        fps = cfg.capture.default_fps if fps is None else fps
+        self.writer = open_video_writer(video_path, camera.size, fps) if video_path else None
+        self.video_path = video_path
+        self.listeners: list = []
+        self.latest: tuple[int, float, np.ndarray] | None = None
+        self.frames_rendered = 0
+        self.frames_written = 0
+        self.dropped = 0
+        self.render_ms: list[float] = []
+        self._pending: deque = deque(maxlen=max(int(cfg.ar.init_buffer_frames), 0))
+        self._items: deque = deque()
+        self._cond = threading.Condition()
+        self._closing = False
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, name="ptam-ar", daemon=True)
+        self._thread.start()
+
+    @property
+    def scene(self):
+        return self.augmenter.scene
+
+    def fire(self) -> None:
+        self.augmenter.scene.fire()
+
+    # -- tracker thread ------------------------------------------------------------------------------------
+    def __call__(self, outcome, system) -> None:
+        frame = outcome.frame
+        if frame is None:
+            return
+        if outcome.T_cw is None:
+            if outcome.state == INITIALISING:
+                self._pending.append(frame)
+            return
+        snapshot = system.mapper.snapshot
+        if outcome.result is None and self._pending:  # this frame completed stereo initialisation
+            poses = dict(system.trajectory[:-1])       # the first keyframe and the frames tracked since
+            for f in self._pending:
+                T_wc = poses.get(float(f.timestamp))
+                if T_wc is not None:
+                    self.submit(frame_image(f), se3.inv(T_wc), f.index, f.timestamp, snapshot)
+        self._pending.clear()
+        self.submit(frame_image(frame), outcome.T_cw, outcome.index, outcome.timestamp, snapshot)
+
+    def submit(self, image: np.ndarray, T_cw: np.ndarray, index: int, timestamp: float, snapshot=None) -> None:
+        item = (image, np.array(T_cw, np.float64), int(index), float(timestamp), snapshot)
+        with self._cond:
+            self._check()
+            if self._closing:
+                raise PtamError("AR layer: frame submitted after close()")
+            while len(self._items) >= self.capacity:
+                if self.writer is None:
+                    self._items.popleft()
+                    self.dropped += 1
+                    break
+                self._cond.wait()  # drop-free video: wait for the worker to take a frame
+                self._check()
+            self._items.append(item)
+            self._cond.notify_all()
+
+    def _check(self) -> None:
+        if self._error is not None:
+            err, self._error = self._error, None
+            raise err
+
+    # -- worker thread -------------------------------------------------------------------------------------
+    def _run(self) -> None:
+        try:
+            while True:
+                with self._cond:
+                    while not self._items and not self._closing:
+                        self._cond.wait()
+                    if not self._items:
+                        return
+                    image, T_cw, index, timestamp, snapshot = self._items.popleft()
+                    self._cond.notify_all()
+                t0 = time.perf_counter()
+                bgr = self.augmenter.augment(image, T_cw, timestamp, snapshot)
+                self.render_ms.append(1e3 * (time.perf_counter() - t0))
+                self.frames_rendered += 1
+                if self.writer is not None:
+                    self.writer.write(bgr)
+                    self.frames_written += 1
+                self.latest = (index, timestamp, bgr)
+                for listener in self.listeners:
+                    listener(index, timestamp, bgr)
+        except BaseException as e:  # re-raised in the tracker's thread at the next frame or at close()
+            with self._cond:
+                self._error = e
+                self._items.clear()
+                self._cond.notify_all()
+
+    # -- shutdown ------------------------------------------------------------------------------------------
+    def close(self) -> None:
+        with self._cond:
+            self._closing = True
+            self._cond.notify_all()
+        self._thread.join()
+        if self.writer is not None:
+            self.writer.release()
+            self.writer = None
+        with self._cond:
+            self._check()
+
+    def __enter__(self) -> ArLayer:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def attach(system, scene: str | None = None, video_path: str | Path | None = None,
+           fps: float | None = None) -> ArLayer:
+    """An :class:`ArLayer` for ``system`` (its camera and config), registered as one of its observers.
+
+    ``scene``: eyes | game | grid | off (default ``ar.scene``); ``video_path``: .avi or .mp4 to write the
+    augmented frames to, one per tracked frame; ``fps``: the video's frame rate (the source's). Call
+    ``close()`` when the stream ends.
+    """
+    layer = ArLayer(system.camera, system.cfg, scene, video_path, fps)
+    system.observers.append(layer)
+    return layer

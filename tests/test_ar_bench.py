@@ -1,0 +1,15 @@
+"""``ptam bench ar``: the per-scene rows and the one machine-readable summary line (timings are not asserted)."""
+
+import re
+
+from ptam.config import load_config
+from ptam.eval.bench_ar import run_ar_benchmark
+
+
+def test_bench_ar_reports_every_scene_and_the_summary_line():
+    lines = []
+    result = run_ar_benchmark(load_config(), "two_wall_short", out=lines.append, frames=60)
+    assert re.fullmatch(r"ar_render_ms=\d+\.\d\d", lines[-1])
+    assert set(result["scenes"]) == {"eyes", "game", "grid"} and result["frames"] >= 15
+    assert result["ar_render_ms"] == max(r["mean"] for r in result["scenes"].values()) > 0
+    assert all(v > 0 for v in result["encode_ms"].values())
