@@ -31,11 +31,22 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--calibration", metavar="CAMERA.yaml", help="camera calibration (default: DIR/camera.yaml)")
     run.add_argument("--fps", type=float, help="frame rate for image folders / requested camera rate")
     run.add_argument("--size", metavar="WxH", help="requested live camera size, e.g. 640x480")
-    run.add_argument("--mode", choices=["sync", "async", "realtime"], help="threading mode (default: async)")
+    run.add_argument("--mode", choices=["sync", "async", "realtime"],
+                     help="threading mode (default: async; realtime for --camera)")
     run.add_argument("--init-frames", metavar="A,B", help="take the stereo-initialisation keyframes at frames A and B")
     run.add_argument("--trajectory", metavar="FILE", help="write the camera trajectory (TUM format)")
     run.add_argument("--keyframes", metavar="FILE", help="write keyframe poses (TUM format)")
-    run.add_argument("--no-viewer", action="store_true", help="do not open a viewer")
+    run.add_argument("--map", metavar="FILE", help="write the map (reload it with --load-map)")
+    run.add_argument("--load-map", metavar="FILE", help="start from a map written by --map and relocalise into it")
+    run.add_argument("--localize-only", action="store_true",
+                     help="with --load-map: track against the map without adding keyframes")
+    run.add_argument("--rrd", metavar="FILE", help="record the viewer's data to a rerun .rrd file")
+    run.add_argument("--serve", action="store_true", help="serve the web viewer on 127.0.0.1 (kept until Ctrl-C)")
+    run.add_argument("--no-viewer", action="store_true", help="do not open a viewer (log nothing)")
+    run.add_argument("--ar", choices=["eyes", "game", "grid", "off"], help="AR scene on the dominant plane "
+                     "(PTAM §7.5; default: config ar.scene)")
+    run.add_argument("--ar-video", metavar="FILE",
+                     help="write the augmented frames, one per tracked frame (.avi or .mp4)")
     _add_config_args(run)
 
     synth = sub.add_parser("synth", help="render a synthetic sequence with ground truth")
@@ -43,6 +54,7 @@ def build_parser() -> argparse.ArgumentParser:
     synth.add_argument("out", nargs="?", help="output directory")
     synth.add_argument("--list", action="store_true", help="list the bundled scenes")
     synth.add_argument("--video", action="store_true", help="also write video.avi (FFV1)")
+    synth.add_argument("--contact-sheet", metavar="PNG", help="also write a grid of 12 frames (as docs/images)")
     _add_config_args(synth)
 
     ev = sub.add_parser("eval", help="compare an estimated trajectory with ground truth (ATE after Sim(3))")
@@ -53,7 +65,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_config_args(ev)
 
     bench = sub.add_parser("bench", help="measure tracking and bundle-adjustment timings (PTAM Tables 1-2)")
-    bench.add_argument("what", nargs="?", default="all", choices=["all", "tracking", "ba", "mapping"])
+    bench.add_argument("what", nargs="?", default="all", choices=["all", "tracking", "ba", "mapping", "agility", "ar"])
     bench.add_argument("scene", nargs="?", default="two_wall")
     _add_config_args(bench)
 

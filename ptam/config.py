@@ -55,6 +55,7 @@ class TrackerConfig:
     quality_good: float
     quality_lost: float
     lost_frames: int
+    max_keyframe_distance_baselines: float
     valid_radius_factor: float
     motion_decay: float
     motion_blend: float
@@ -248,12 +249,50 @@ class ViewerConfig:
     jpeg_quality: int
     thumbnail_level: int
     frustum_depth: float
+    camera_frustum_depth: float
     point_radius_ui: float
     measurement_radius_px: float
-    failed_cross_px: float
+    failed_radius_px: float
     grid_spacing: float
     grid_half_cells: int
     status_interval_s: float
+
+
+@dataclass(frozen=True)
+class ArConfig:
+    scene: str
+    queue_frames: int
+    init_buffer_frames: int
+    plane_refresh_growth: float
+    grid_half_cells: int
+    grid_spacing: float
+    grid_samples_per_cell: int
+    grid_line_px: int
+    grid_fade_frames: list[int]
+    game_grid_alpha: float
+    light_direction: list[float]
+    ambient: float
+    diffuse: float
+    specular: float
+    shininess: float
+    eye_radius: float
+    eye_pupil_deg: float
+    eye_iris_deg: float
+    eye_turn_rate: float
+    shadow_radius_rel: float
+    shadow_softness_rel: float
+    shadow_alpha: float
+    target_count: int
+    target_radius: float
+    target_speed: float
+    target_turn_rate: float
+    target_wander_deg: float
+    arena_half_size: float
+    max_step_s: float
+    dwell_frames: int
+    burst_frames: int
+    crosshair_radius: float
+    seed: int
 
 
 @dataclass(frozen=True)
@@ -274,6 +313,7 @@ class Config:
     calibrate: CalibrateConfig
     synth_calibration: SynthCalibrationConfig
     viewer: ViewerConfig
+    ar: ArConfig
 
     def replace(self, **changes: str) -> Config:
         """A copy with ``section.key`` values changed, e.g. ``cfg.replace(**{"tracker.max_patches": 500})``."""
@@ -281,7 +321,8 @@ class Config:
                                       for k, v in changes.items()])
 
 
-_CHOICES = {("calibrate", "detector"): ("sb", "classic"),
+_CHOICES = {("ar", "scene"): ("eyes", "game", "grid", "off"),
+            ("calibrate", "detector"): ("sb", "classic"),
             ("calibrate", "loss"): ("linear", "huber", "soft_l1", "cauchy"),
             ("synth_calibration", "model"): ("fov", "radtan"),
             ("system", "mode"): ("async", "sync", "realtime"),

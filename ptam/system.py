@@ -11,6 +11,11 @@ key presses (:meth:`System.request_keyframe`) take the two keyframes, as in the 
 sources) trails start at the first frame and the second keyframe is taken when their median disparity passes
 ``init.auto_min_disparity_rel_focal`` × f, or at fixed frames (``init_frames``); a failure is logged with its
 reason and initialisation restarts. :meth:`System.reset` discards the map and initialises again.
+
+Once tracking is lost (PTAM §5.6), every frame is relocalised (Agility §7) before it is tracked: the pose from
+the best-matching keyframe restarts the tracker with an enlarged coarse stage, until a frame is tracked again
+(not bad). A rejected attempt skips tracking; no attempt changes the map, and no keyframe is added while
+relocalising (PTAM code: only the normal tracking branch adds keyframes).
 """
 
 from __future__ import annotations
@@ -28,12 +33,13 @@ from .mapping.map_maker import KeyframeRequest, MapMaker
 from .mapping.stereo_init import init_from_stereo
 from .mapping.two_view import InitFailure
 from .tracking.quality import GOOD
+from .tracking.relocaliser import Relocaliser
 from .tracking.tracker import Tracker
 from .tracking.trails import TrailTracker
 
 log = logging.getLogger("ptam")
 
-INITIALISING, TRACKING, LOST = "initialising", "tracking", "lost"
+INITIALISING, TRACKING, LOST, RELOCALISING = "initialising", "tracking", "lost", "relocalising"
 
 
 @dataclass
@@ -55,6 +61,8 @@ class RunStats:
     frames: int = 0
     tracked: int = 0
     lost_events: int = 0
+    relocalisations: int = 0   # lost -> tracking through a relocalisation (Agility §7)
+    reloc_attempts: int = 0
     keyframes_requested: int = 0
     init_attempts: int = 0
     init_failures: list = field(default_factory=list)
@@ -80,6 +88,7 @@ class System:
         self._key_pressed = False
         self.localize_only = localize_only
         self.tracker = Tracker(camera, cfg)
+        self.relocaliser = Relocaliser(camera, cfg)
         self.mapper = MapMaker(camera, cfg, map_)
         self.trails = TrailTracker(cfg.init, cfg.image)
         self.state = INITIALISING
@@ -142,7 +151,7 @@ class System:
     @property
     def init_started(self) -> bool:
         """Stereo initialisation has its first keyframe and is following trails."""
-        return self._first is not None
+        return self._first is not None and not self.mapper.initialised
 
     def reset(self) -> None:
         """PTAM's reset: discard the map, the trajectory and the tracker's state, then initialise again."""
@@ -174,24 +183,43 @@ class System:
         return out
 
     def _track(self, frame, record: bool = True) -> FrameOutcome:
-        res = self.tracker.track(frame, self.mapper.snapshot)
+        snapshot = self.mapper.snapshot
+        recovering = self.state in (LOST, RELOCALISING) and self.cfg.reloc.enabled
+        if self.cfg.reloc.enabled:
+            self.relocaliser.sync(snapshot)  # keyframe descriptors as keyframes appear, not all at the first loss
+        pyramid = None
+        if recovering:
+            pyramid = Pyramid.build(frame.image, self.cfg.image)
+            reloc = self.relocaliser.attempt(pyramid, snapshot)
+            self.stats.reloc_attempts += 1
+            if reloc is None or not reloc.accepted:
+                self.state = RELOCALISING
+                return FrameOutcome(int(frame.index), float(frame.timestamp), RELOCALISING, None)
+            self.tracker.set_pose(reloc.T_cw, recovered=True)
+        res = self.tracker.track(frame, snapshot, pyramid)
         self.stats.track_ms.append(res.timings.total)
-        was_lost = self.state == LOST
-        self.state = LOST if res.lost else TRACKING
-        if self.state == LOST and not was_lost:
-            self.stats.lost_events += 1
+        if recovering:
+            self.state = RELOCALISING if res.lost else TRACKING
+            if not res.lost:
+                self.stats.relocalisations += 1
+        else:
+            if res.lost and self.state != LOST:
+                self.stats.lost_events += 1
+            self.state = LOST if res.lost else TRACKING
         T = res.T_cw if res.tracked else None
         if T is not None and record:
             self.trajectory.append((res.timestamp, se3.inv(T)))
             self.stats.tracked += 1
-        added = record and self._maybe_add_keyframe(res)
+        added = record and not recovering and self._maybe_add_keyframe(res)
         return FrameOutcome(res.frame_index, res.timestamp, self.state, T, res, added)
 
     def _maybe_add_keyframe(self, res) -> bool:
-        """PTAM §6.2 (code ``Tracker::NeedNewKeyFrame`` + ``MapMaker::NeedNewKeyFrame``)."""
+        """PTAM §6.2 (code ``Tracker::NeedNewKeyFrame`` + ``MapMaker::NeedNewKeyFrame``); frames of rapid motion
+        are tracked but not used for map-building (Agility §10)."""
         m = self.cfg.mapper
         kf = res.keyframe
-        if self.localize_only or not (res.quality == GOOD and kf.frames_since_keyframe > m.kf_min_frames
+        if self.localize_only or res.rapid_motion or not (
+                res.quality == GOOD and kf.frames_since_keyframe > m.kf_min_frames
                 and self.mapper.queue_size() < m.kf_max_queue
                 and self.mapper.need_new_keyframe(kf.nearest_keyframe_distance, kf.mean_scene_depth)):
             return False

@@ -60,3 +60,11 @@ class RealtimeFeed:
                 raise self._error
         finally:
             self._stop.set()
+
+    def close(self, timeout_s: float = 2.0) -> None:
+        """Stop the reader and wait for it, so the source is never closed under a read in progress."""
+        self._stop.set()
+        with self._cond:
+            self._slot = None
+        if self._thread.is_alive():
+            self._thread.join(timeout_s)

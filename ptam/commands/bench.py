@@ -18,6 +18,14 @@ def main(args, cfg) -> int:
         from ..eval.bench_mapping import run_mapping_benchmark
         run_mapping_benchmark(cfg, args.scene)
         return 0
+    if args.what == "agility":
+        from ..eval.bench_agility import run_agility_benchmark
+        run_agility_benchmark(cfg, args.scene)
+        return 0
+    if args.what == "ar":
+        from ..eval.bench_ar import run_ar_benchmark
+        run_ar_benchmark(cfg, args.scene)
+        return 0
     if args.what == "all":
         from ..eval.bench_mapping import run_mapping_benchmark
         from ..eval.bench_tracking import run_tracking_benchmark

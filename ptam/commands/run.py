@@ -1,28 +1,42 @@
 """``ptam run``: track a camera, a video or a dataset (or the embedded two-wall default) and build a map.
 
-Everything asked for (trajectory, keyframes) is written at the end of the stream, on Ctrl-C and on errors
-alike, then a summary is printed. A dataset that carries ``groundtruth.txt`` (TUM layout, e.g. from
-``ptam synth``) is also scored: ATE after Sim(3) alignment, next to PTAM's 6 mm on its two-wall sequence.
+The viewer (rerun) opens by itself when there is a display; ``--rrd FILE`` records instead, ``--serve`` serves the
+web viewer on 127.0.0.1, ``--no-viewer`` logs nothing. Live cameras are driven from the terminal as in PTAM:
+space takes the two keyframes of stereo initialisation (§6.1), ``r`` resets, ``q`` quits. Everything asked for
+(trajectory, keyframes, map) is written at the end of the stream, on Ctrl-C and on errors alike (a camera that
+disappears, a truncated video), then a summary is printed. ``--load-map`` starts from a saved map;
+``--localize-only`` tracks against it without mapping. A dataset that carries ``groundtruth.txt`` (TUM layout,
+e.g. from ``ptam synth``) is also scored: ATE after Sim(3) alignment, next to PTAM's 6 mm on its two-wall sequence.
 """
 
 from __future__ import annotations
 
 import logging
+import os
+import signal
 import sys
+import threading
+import time
 from pathlib import Path
 
 import numpy as np
 
 from ..camera import load_camera
 from ..capture import find_calibration, open_source
+from ..capture.keys import TerminalKeys
 from ..capture.realtime import RealtimeFeed
-from ..errors import InputError
+from ..errors import InputError, PtamError
 from ..eval import associate, ate, read_tum, write_tum
+from ..image.pyramid import Pyramid
+from ..map.io import load_map, save_map
 from ..system import System
+from ..viz.state import INITIALISING, state_of
+from .run_progress import Display
 from .run_summary import print_summary
 
 DEFAULT_SCENE = "two_wall"
 PAPER_ATE_MM = 6.0  # PTAM §7.3: standard deviation from ground truth on its synthetic two-wall sequence
+KEY_INIT, KEY_RESET, KEY_QUIT = " ", "r", "q"
 
 log = logging.getLogger("ptam")
 
@@ -39,7 +53,20 @@ def _init_frames(text: str | None):
     return a, b
 
 
-def _open(args, cfg):
+def _check_arguments(args) -> None:
+    if args.localize_only and not args.load_map:
+        raise InputError("--localize-only needs a map to track against: add --load-map FILE")
+    if args.no_viewer and (args.rrd or args.serve):
+        raise InputError("--no-viewer logs nothing; leave it out to use --rrd or --serve")
+    for option, path in (("--trajectory", args.trajectory), ("--keyframes", args.keyframes), ("--map", args.map),
+                         ("--rrd", args.rrd)):
+        if path:
+            directory = os.path.dirname(os.path.abspath(path))
+            if not os.path.isdir(directory):
+                raise InputError(f"{option} {path}: directory {directory} does not exist")
+
+
+def _open(args, cfg, map_camera):
     dataset = args.dataset
     if args.camera is None and args.video is None and dataset is None:
         from ..synthetic import ensure_sequence
@@ -49,39 +76,71 @@ def _open(args, cfg):
         dataset = str(ensure_sequence(DEFAULT_SCENE, cfg.synthetic.cache_dir))
     source = open_source(camera=args.camera, video=args.video, dataset=dataset, fps=args.fps, size=args.size,
                          cfg=cfg.capture)
-    calibration = args.calibration or (find_calibration(dataset) if dataset else None)
-    if calibration is None:
+    try:
+        calibration = args.calibration or (find_calibration(dataset) if dataset else None)
+        if calibration is None and map_camera is None:
+            raise InputError("no calibration: pass --calibration camera.yaml")
+        camera = load_camera(calibration) if calibration else map_camera
+        if camera.size != source.size:
+            where = f"calibration {calibration}" if calibration else "the map's camera"
+            raise InputError(f"{where} is for {camera.width}x{camera.height} images but "
+                             f"{source.name} delivers {source.size[0]}x{source.size[1]}")
+        Pyramid.build(np.zeros((camera.height, camera.width), np.uint8), cfg.image)  # frames fit the pyramid
+        if map_camera is not None and camera.to_dict() != map_camera.to_dict():
+            log.warning("the calibration differs from the camera the map was built with; tracking uses %s",
+                        calibration)
+    except BaseException:
         source.close()
-        raise InputError("no calibration: pass --calibration camera.yaml")
-    camera = load_camera(calibration)
-    if camera.size != source.size:
-        source.close()
-        raise InputError(f"calibration {calibration} is for {camera.width}x{camera.height} images but "
-                         f"{source.name} delivers {source.size[0]}x{source.size[1]}")
+        raise
     return source, camera, dataset
 
 
-def _progress(frames, length):
+def _open_recording(args, cfg):
+    """The rerun recording for this run, or None (--no-viewer, or no display and nothing else asked for)."""
+    if args.no_viewer:
+        return None
+    from ..viz.sinks import has_display, open_recording
+
+    spawn = not (args.rrd or args.serve)
+    if spawn and not has_display():
+        print("ptam: no display (DISPLAY/WAYLAND_DISPLAY unset): not opening the viewer; use --serve or --rrd FILE "
+              "to see the run", file=sys.stderr)
+        return None
     try:
-        from tqdm import tqdm
-    except ImportError:
-        return frames
-    return tqdm(frames, total=length, unit="frame", disable=None, leave=False, dynamic_ncols=True)
+        recording = open_recording(cfg.viewer, spawn=spawn, rrd=args.rrd, serve=args.serve)
+    except PtamError:
+        raise
+    except Exception as e:  # the viewer is optional; a run is still worth doing without it
+        if not spawn:
+            raise InputError(f"cannot start the viewer: {e}") from None
+        print(f"ptam: cannot open the viewer ({e}); running without it", file=sys.stderr)
+        return None
+    print(f"ptam: {', '.join(recording.targets)}", file=sys.stderr)
+    return recording
 
 
-def _write_outputs(args, system: System) -> None:
-    if args.trajectory:
-        t = np.array([p[0] for p in system.trajectory])
-        T = np.array([p[1] for p in system.trajectory]).reshape(-1, 4, 4)
-        write_tum(args.trajectory, t, T, header="ptam trajectory: timestamp tx ty tz qx qy qz qw (camera-to-world)")
-    if args.keyframes:
-        snap = system.mapper.snapshot
+def _write_outputs(args, system: System, camera, cfg) -> None:
+    snap = system.mapper.snapshot
+    try:
+        if args.trajectory:
+            t = np.array([p[0] for p in system.trajectory])
+            T = np.array([p[1] for p in system.trajectory]).reshape(-1, 4, 4)
+            write_tum(args.trajectory, t, T, header="ptam trajectory: timestamp tx ty tz qx qy qz qw "
+                                                    "(camera-to-world)")
+        if args.keyframes:
+            if snap is None or snap.n_keyframes == 0:
+                write_tum(args.keyframes, np.zeros(0), np.zeros((0, 4, 4)), header="ptam keyframes (none)")
+            else:
+                t = np.array([k.timestamp for k in snap.keyframes])
+                write_tum(args.keyframes, t, np.linalg.inv(snap.kf_T_cw),
+                          header="ptam keyframes: timestamp tx ty tz qx qy qz qw (camera-to-world)")
+    except OSError as e:
+        raise InputError(f"cannot write {e.filename}: {e.strerror}") from None
+    if args.map:
         if snap is None or snap.n_keyframes == 0:
-            write_tum(args.keyframes, np.zeros(0), np.zeros((0, 4, 4)), header="ptam keyframes (none)")
+            print(f"ptam: no map to write to {args.map} (no map was built)", file=sys.stderr)
         else:
-            t = np.array([k.timestamp for k in snap.keyframes])
-            T = np.linalg.inv(snap.kf_T_cw)
-            write_tum(args.keyframes, t, T, header="ptam keyframes: timestamp tx ty tz qx qy qz qw (camera-to-world)")
+            save_map(args.map, snap, camera, cfg.image.levels)
 
 
 def _score(dataset: str | None, system: System, embedded: bool) -> None:
@@ -101,28 +160,149 @@ def _score(dataset: str | None, system: System, embedded: bool) -> None:
           f"poses, path {length:.2f} m{paper}")
 
 
-def main(args, cfg) -> int:
-    logging.basicConfig(level=logging.INFO, format="ptam: %(message)s", stream=sys.stderr)
-    mode = args.mode or cfg.system.mode
-    init_frames = _init_frames(getattr(args, "init_frames", None))
-    embedded = args.camera is None and args.video is None and args.dataset is None
-    source, camera, dataset = _open(args, cfg)
-    system = System(camera, cfg, mode=mode, init_frames=init_frames)
-    feed = RealtimeFeed(source) if mode == "realtime" else source
-    interrupted = False
+def _status(system: System, outcome, feed):
+    """The status line's text for the latest frame."""
+    def text(fps: float) -> str:
+        snap = system.mapper.snapshot
+        state = state_of(outcome)
+        if state == INITIALISING and system.init_mode == "key":
+            state += (": move the camera sideways, then press space" if system.init_started
+                      else ": press space to take the first keyframe")
+        kfs, pts = (snap.n_keyframes, snap.n_points) if snap is not None else (0, 0)
+        dropped = f"  dropped {feed.dropped}" if isinstance(feed, RealtimeFeed) else ""
+        return f"{state}  {fps:.1f} fps  kfs {kfs}  points {pts}{dropped}"
+    return text
+
+
+def _keys(keys: TerminalKeys, system: System, display: Display) -> bool:
+    """Act on the keys pressed since the last frame; True to quit."""
+    for key in keys.read().lower():
+        if key == KEY_QUIT:
+            return True
+        if key == KEY_INIT:
+            system.request_keyframe()
+        elif key == KEY_RESET:
+            if system.localize_only:
+                display.write("ptam: reset is not available with --localize-only")
+            else:
+                system.reset()
+                display.write("ptam: reset: the map is discarded; initialise again")
+    return False
+
+
+def _serve_until_interrupted(recording, stop: _StopRequest) -> None:
+    print(f"ptam: the run is over; the web viewer stays at {recording.server.url} until Ctrl-C", file=sys.stderr)
     try:
-        with source, system:
-            for frame in _progress(feed, source.length):
-                system.process(frame)
+        while recording.server.process.poll() is None and not stop.requested:
+            time.sleep(0.5)
+    except KeyboardInterrupt:
+        pass
+
+
+class _StopRequest:
+    """Ctrl-C and SIGTERM during a run: the first asks it to stop after the current frame, so the outputs are
+    written from a consistent state; a second one interrupts at once (e.g. a camera that no longer delivers)."""
+
+    def __init__(self):
+        self.requested = False
+        self._previous: dict = {}
+
+    def _handle(self, signum, frame) -> None:
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+
+    def __enter__(self) -> _StopRequest:
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._previous[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+        self._previous = {}
+
+
+def main(args, cfg) -> int:
+    with _StopRequest() as stop:
+        return _main(args, cfg, stop)
+
+
+def _main(args, cfg, stop: _StopRequest) -> int:
+    logging.basicConfig(level=logging.INFO, format="ptam: %(message)s", stream=sys.stderr)
+    live = args.camera is not None
+    mode = args.mode or ("realtime" if live else cfg.system.mode)
+    init_frames = _init_frames(getattr(args, "init_frames", None))
+    _check_arguments(args)
+    loaded = load_map(args.load_map, cfg.image) if args.load_map else None
+    embedded = args.camera is None and args.video is None and args.dataset is None
+    source, camera, dataset = _open(args, cfg, loaded.camera if loaded else None)
+    with source:
+        recording = _open_recording(args, cfg)
+        try:
+            system, code = _run(args, cfg, source, camera, mode, init_frames, loaded, recording, live, stop)
+            _score(dataset, system, embedded)
+            if recording is not None and recording.server is not None and code == 0:
+                _serve_until_interrupted(recording, stop)
+        finally:
+            if recording is not None:
+                recording.close()
+    return code
+
+
+def _run(args, cfg, source, camera, mode, init_frames, loaded, recording, live, stop) -> tuple[System, int]:
+    """Process the source to its end (or q, Ctrl-C, an input error); outputs are written whatever happens."""
+    keys = TerminalKeys(sys.stdin if live else None)
+    init_mode = "key" if keys.active and init_frames is None else "auto"
+    system = System(camera, cfg, mode=mode, init_frames=init_frames, map_=loaded.map if loaded else None,
+                    localize_only=args.localize_only, init_mode=init_mode)
+    viewer = None
+    if recording is not None:
+        from ..viz.viewer import Viewer
+
+        viewer = Viewer(recording.stream, camera, cfg)
+        system.observers.append(viewer)
+    ar = None
+    if args.ar_video or args.ar not in (None, "off"):  # augmented frames in the AR worker (ptam.ar), off this thread
+        from ..ar import attach
+
+        ar = attach(system, args.ar, args.ar_video, source.fps)
+    feed = RealtimeFeed(source) if mode == "realtime" else source
+    if init_mode == "key":
+        print("ptam: keys: space = stereo-initialisation keyframes (PTAM §6.1), r = reset, q = quit",
+              file=sys.stderr)
+    interrupted, error = False, None
+    try:
+        with system, keys, Display(source.length, cfg.viewer.status_interval_s) as display:
+            for frame in feed:
+                outcome = system.process(frame)
+                display.frame_done(_status(system, outcome, feed))
+                if keys.active and _keys(keys, system, display):
+                    break
+                if stop.requested:
+                    interrupted = True
+                    break
     except KeyboardInterrupt:
         interrupted = True
-        print("ptam: interrupted; writing what was computed", file=sys.stderr)
+    except PtamError as e:
+        error = e
     finally:
-        _write_outputs(args, system)
-    dropped = feed.dropped if isinstance(feed, RealtimeFeed) else None
-    print_summary(system, mode, dropped)
+        if isinstance(feed, RealtimeFeed):
+            feed.close()
+        if viewer is not None:
+            viewer.close(system)
+            if viewer.error is not None:
+                print(f"ptam: the viewer could not log part of the run: {viewer.error}", file=sys.stderr)
+        _write_outputs(args, system, camera, cfg)
+        if ar is not None:
+            ar.close()  # flushes the video
+    if interrupted:
+        print("ptam: interrupted; wrote what was computed", file=sys.stderr)
+    print_summary(system, mode, feed.dropped if isinstance(feed, RealtimeFeed) else None, viewer)
     if not system.mapper.initialised:
         reason = system.last_failure or "no frame gave a usable stereo pair"
         print(f"initialisation did not succeed: {reason}")
-    _score(dataset, system, embedded)
-    return 130 if interrupted else 0
+    if error is not None:
+        raise error
+    return system, 130 if interrupted else 0

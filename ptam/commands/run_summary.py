@@ -5,7 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 
-def print_summary(system, mode: str, dropped: int | None) -> None:
+def print_summary(system, mode: str, dropped: int | None, viewer=None) -> None:
+    """Frames, tracked %, lost events, relocalisations, keyframes, points; median / p95 tracking ms, bundle
+    adjustment runs, frames dropped in realtime mode and frames the viewer had no time to log."""
     s = system.stats
     snap = system.mapper.snapshot
     kfs = snap.n_keyframes if snap is not None else 0
@@ -14,7 +16,12 @@ def print_summary(system, mode: str, dropped: int | None) -> None:
     ba = system.mapper.stats
     tracked = 100.0 * s.tracked / max(s.frames, 1)
     print(f"frames {s.frames}  tracked {s.tracked} ({tracked:.1f}%)  lost events {s.lost_events}  "
-          f"keyframes {kfs}  points {pts}")
-    print(f"tracking ms median {np.median(ms):.1f}  p95 {np.percentile(ms, 95):.1f}  "
-          f"local BA runs {len(ba['local_ba'])}  global BA runs {len(ba['global_ba'])}  mode {mode}"
-          + (f"  dropped frames {dropped}" if dropped is not None else ""))
+          f"relocalisations {s.relocalisations}  keyframes {kfs}  points {pts}")
+    line = (f"tracking ms median {np.median(ms):.1f}  p95 {np.percentile(ms, 95):.1f}  "
+            f"BA runs {len(ba['local_ba']) + len(ba['global_ba'])} (local {len(ba['local_ba'])}, "
+            f"global {len(ba['global_ba'])})  mode {mode}")
+    if dropped is not None:
+        line += f"  dropped frames {dropped}"
+    if viewer is not None and viewer.dropped:
+        line += f"  frames not shown in the viewer {viewer.dropped}"
+    print(line)

@@ -66,7 +66,8 @@ class MapMaker:
         # Keyframe spacing: the initial baseline over the first keyframe's mean depth (PTAM code
         # mdWiggleScaleDepthNormalized).
         self.wiggle_depth_normalised = 0.0
-        self.stats = {"local_ba": [], "global_ba": [], "keyframes_added": 0}
+        # ba_running: "local" or "global" while a bundle adjustment runs, else None (read by the viewer).
+        self.stats = {"local_ba": [], "global_ba": [], "keyframes_added": 0, "ba_running": None}
         self.ready = False  # set once a usable map exists; the mapper thread idles until then
         if len(self.map.keyframes):
             self.ready = True
@@ -251,8 +252,12 @@ class MapMaker:
         else:
             fixed_poses = fixed
             adjust_points = ~m.bad
-        res = self.bundle.adjust(m.kf_T_cw, m.X, m.meas_kf, m.meas_pt, m.meas_xy, m.meas_level, fixed_poses,
-                                 adjust_points, abort=self._abort)
+        self.stats["ba_running"] = "local" if recent else "global"
+        try:
+            res = self.bundle.adjust(m.kf_T_cw, m.X, m.meas_kf, m.meas_pt, m.meas_xy, m.meas_level, fixed_poses,
+                                     adjust_points, abort=self._abort)
+        finally:
+            self.stats["ba_running"] = None
         # (keyframes in the map, ms, converged) per run, for PTAM Table 2's buckets by map size.
         self.stats["local_ba" if recent else "global_ba"].append(
             (n, 1e3 * res.phase_seconds.get("total", 0.0), bool(res.converged)))

@@ -1,0 +1,137 @@
+"""Map files: save a map and load it back (``ptam run --map FILE`` / ``--load-map FILE``).
+
+A map file is a NumPy ``.npz`` archive (compressed, no pickles) named by a format string and a version. It holds
+what cannot be recomputed: each keyframe's level-0 image, pose, depth statistics and timestamp, every point column
+(bad points included, so indices stay valid), every measurement column, the camera and the pyramid depth the map
+was built with. Everything derived (the other pyramid levels, FAST corners, row tables, and whatever else a
+:class:`KeyFrame` builds from its image) is rebuilt on load from the current config. Files are written to a
+temporary file in the target directory and renamed into place, so a crash never leaves half a map behind.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import zipfile
+import zlib
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..camera import camera_from_dict
+from ..errors import InputError, PtamError
+from ..image.pyramid import Pyramid
+from .keyframe import KeyFrame
+from .map import Map
+from .snapshot import MapSnapshot
+
+FORMAT = "ptam-map"
+VERSION = 1
+
+_POINTS = ("X", "normal", "source_kf", "source_level", "source_xy", "bad")
+_MEASUREMENTS = ("meas_kf", "meas_pt", "meas_xy", "meas_level", "meas_source")
+_KEYFRAMES = ("kf_image0", "kf_T_cw", "kf_depth_mean", "kf_depth_sigma", "kf_timestamp")
+_HEADER = ("format", "version", "camera", "levels")
+
+
+@dataclass(frozen=True)
+class LoadedMap:
+    """A map read from a file and the camera it was built with."""
+
+    map: Map
+    camera: object
+
+
+def save_map(path: str | os.PathLike, snapshot: MapSnapshot, camera, levels: int) -> None:
+    """Write ``snapshot`` (built with ``camera`` and a ``levels``-level pyramid) to ``path`` atomically."""
+    path = os.fspath(path)
+    if snapshot.n_keyframes == 0:
+        raise PtamError(f"no map to write to {path}: it has no keyframes")
+    arrays = {
+        "format": np.array(FORMAT), "version": np.array(VERSION),
+        "camera": np.array(json.dumps(camera.to_dict())), "levels": np.array(levels),
+        "kf_image0": np.stack([kf.pyramid.levels[0] for kf in snapshot.keyframes]),
+        "kf_T_cw": np.asarray(snapshot.kf_T_cw),
+        "kf_depth_mean": np.array([kf.scene_depth_mean for kf in snapshot.keyframes]),
+        "kf_depth_sigma": np.array([kf.scene_depth_sigma for kf in snapshot.keyframes]),
+        "kf_timestamp": np.array([kf.timestamp for kf in snapshot.keyframes]),
+        **{k: np.asarray(getattr(snapshot, k)) for k in _POINTS + _MEASUREMENTS},
+    }
+    directory = os.path.dirname(os.path.abspath(path))
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(path)}.", suffix=".tmp", dir=directory)
+    except OSError as e:
+        raise InputError(f"cannot write map file {path}: {e.strerror}") from None
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.savez_compressed(f, allow_pickle=False, **arrays)
+            f.flush()
+            os.fsync(f.fileno())
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except OSError as e:
+        os.unlink(tmp)
+        raise InputError(f"cannot write map file {path}: {e.strerror}") from None
+    except BaseException:
+        os.unlink(tmp)
+        raise
+
+
+def _read(path: str) -> dict[str, np.ndarray]:
+    if not os.path.isfile(path):
+        raise InputError(f"map file not found: {path}")
+    if not zipfile.is_zipfile(path):
+        raise InputError(f"{path} is not a ptam map file (not an .npz archive, or truncated)")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            if "format" not in z.files or str(z["format"]) != FORMAT:
+                raise InputError(f"{path} is not a ptam map file")
+            version = int(z["version"]) if "version" in z.files else -1
+            if version != VERSION:
+                raise InputError(f"map file {path} has format version {version}; this ptam reads version {VERSION}")
+            missing = [k for k in _HEADER + _KEYFRAMES + _POINTS + _MEASUREMENTS if k not in z.files]
+            if missing:
+                raise InputError(f"map file {path} is incomplete: no '{missing[0]}'")
+            return {k: z[k] for k in z.files}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as e:
+        raise InputError(f"cannot read map file {path}: corrupt or not a ptam map ({e})") from None
+
+
+def load_map(path: str | os.PathLike, image_cfg) -> LoadedMap:
+    """Read a map file written by :func:`save_map`; keyframe pyramids are rebuilt with ``image_cfg``.
+
+    Any problem with the file (missing, corrupt, another format or version, inconsistent arrays, a pyramid depth
+    other than ``image_cfg.levels``) raises :class:`InputError` naming the file."""
+    path = os.fspath(path)
+    a = _read(path)
+    try:
+        camera = camera_from_dict(json.loads(str(a["camera"])), where=f"map file {path}: camera")
+    except json.JSONDecodeError:
+        raise InputError(f"map file {path}: unreadable camera record") from None
+    if int(a["levels"]) != image_cfg.levels:
+        raise InputError(f"map file {path} was built with {int(a['levels'])} pyramid levels; the config has "
+                         f"image.levels = {image_cfg.levels}")
+    images = a["kf_image0"]
+    n = len(images)
+    if n == 0 or images.ndim != 3 or images.dtype != np.uint8 or images.shape[1:] != (camera.height, camera.width):
+        raise InputError(f"map file {path}: keyframe images of shape {images.shape} ({images.dtype}) do not match "
+                         f"its {camera.width}x{camera.height} camera")
+    if any(len(a[k]) != n for k in _KEYFRAMES):
+        raise InputError(f"map file {path}: keyframe arrays of different lengths")
+    m = Map()
+    try:
+        for i in range(n):
+            pyramid = Pyramid.build(images[i], image_cfg)
+            kf = KeyFrame(i, pyramid, float(a["kf_depth_mean"][i]), float(a["kf_depth_sigma"][i]),
+                          float(a["kf_timestamp"][i]))
+            m.add_keyframe(kf, a["kf_T_cw"][i])
+        m.add_points(a["X"], a["normal"], a["source_kf"], a["source_level"], a["source_xy"])
+        if a["bad"].shape != (m.n_points_total,):
+            raise PtamError(f"bad flags of shape {a['bad'].shape} for {m.n_points_total} points")
+        if a["bad"].any():
+            m.mark_bad(np.flatnonzero(a["bad"]))
+        m.add_measurements(a["meas_kf"], a["meas_pt"], a["meas_xy"], a["meas_level"], a["meas_source"])
+    except PtamError as e:
+        raise InputError(f"map file {path} is inconsistent: {e}") from None
+    return LoadedMap(m, camera)

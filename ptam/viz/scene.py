@@ -1,0 +1,32 @@
+"""Geometry drawn by the viewer, as plain arrays: the dominant-plane grid and thumbnail intrinsics."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..image.pyramid import zero_to_level
+
+# rerun puts pixel corners at integer coordinates (a W-pixel-wide image spans [0, W]); ptam puts pixel centres there.
+RERUN_PIXEL_OFFSET = 0.5
+
+
+def grid_lines(spacing: float, half_cells: int) -> tuple[np.ndarray, np.ndarray]:
+    """Lines of the map's z = 0 plane (PTAM §6.1: the dominant plane after initialisation), drawn as PTAM's map
+    viewer does (code ``MapViewer::DrawGrid``): 2·half_cells + 1 lines each way, ``spacing`` apart.
+
+    Returns (L, 2, 3) segment end points and an (L,) bool that marks the two lines through the origin."""
+    k = np.arange(-half_cells, half_cells + 1, dtype=np.float64) * spacing
+    e = half_cells * spacing
+    zeros = np.zeros_like(k)
+    along_y = np.stack([np.stack([k, -e + zeros, zeros], 1), np.stack([k, e + zeros, zeros], 1)], axis=1)
+    along_x = np.stack([np.stack([-e + zeros, k, zeros], 1), np.stack([e + zeros, k, zeros], 1)], axis=1)
+    axis = np.arange(-half_cells, half_cells + 1) == 0
+    return np.concatenate([along_y, along_x]), np.concatenate([axis, axis])
+
+
+def level_intrinsics(camera, level: int) -> tuple[tuple[float, float], tuple[float, float], tuple[int, int]]:
+    """Focal lengths, principal point (in rerun's pixel convention) and size of pyramid level ``level``: the linear
+    part of the camera, enough to draw a frustum."""
+    s = 2.0 ** level
+    c = zero_to_level(np.array([[camera.cx, camera.cy]]), level)[0] + RERUN_PIXEL_OFFSET
+    return (camera.fx / s, camera.fy / s), (float(c[0]), float(c[1])), (camera.width >> level, camera.height >> level)

@@ -1,0 +1,232 @@
+"""The rerun viewer as an observer of :class:`ptam.system.System` (DESIGN.md: observers never block tracking).
+
+Called after every frame in the tracker's thread, :class:`Viewer` only collects references to immutable data (the
+frame outcome, the current :class:`MapSnapshot`, the trajectory list and its length, mapper counters) and hands
+them to its own logging thread through a bounded queue; when the queue is full the frame is not logged (counted
+in ``dropped``). The logging thread does all encoding and rerun calls. Map points and keyframe frusta are logged
+only when the mapper has published a new snapshot; keyframe thumbnails once per keyframe.
+
+What is logged (entity paths):
+
+* ``world/camera`` current pose; ``world/camera/image`` the frame, with ``found`` measurements coloured by pyramid
+  level (PTAM's colours), ``failed`` ones as small grey dots, and the stereo-initialisation ``trails`` (PTAM §6.1);
+* ``world/points`` the good map points coloured by source level; ``world/keyframes/NNNN`` one frustum per
+  keyframe with its thumbnail; ``world/trajectory`` the tracked camera path; ``world/grid`` the dominant plane
+  z = 0 once a map exists (PTAM §6.1);
+* ``state`` initialising / good / poor / lost / relocalising (PTAM §5.6);
+* ``plots/...`` tracking ms per frame, map points and keyframes over time (PTAM Fig. 4) and the mapper's queue
+  length and bundle adjustment activity.
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+import time
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+import rerun as rr
+
+from ..geometry import se3
+from ..map.snapshot import MapSnapshot
+from . import scene, style
+from .blueprint import default_blueprint
+from .state import INITIALISING, state_of
+
+_BA_CODES = {None: 0, "local": 1, "global": 2}
+
+
+@dataclass(frozen=True)
+class _Item:
+    """One frame as handed to the logging thread: references only, nothing copied in the tracker's thread."""
+
+    outcome: object            # FrameOutcome, or None for the final state at close
+    state: str
+    snapshot: MapSnapshot | None
+    trajectory: list           # System.trajectory (append-only; replaced by a reset) ...
+    n_trajectory: int          # ... and its length at this frame
+    trails: tuple | None       # (start_xy, current_xy) while initialising
+    mapper_queue: int
+    ba_running: str | None
+
+
+class Viewer:
+    """``Viewer(recording, camera, cfg)`` then ``system.observers.append(viewer)``; :meth:`close` at the end logs
+    the final map and trajectory and waits for the logging thread."""
+
+    def __init__(self, recording: rr.RecordingStream, camera, cfg):
+        self.rec = recording
+        self.camera = camera
+        self.cfg = cfg.viewer
+        self.queue: queue.Queue = queue.Queue(maxsize=self.cfg.queue_size)
+        self.dropped = 0
+        self.observe_ms: list[float] = []  # time spent in the tracker's thread, per frame
+        self._snapshot: MapSnapshot | None = None
+        self._kf_logged: tuple = ()        # KeyFrame objects whose thumbnails are logged
+        self._kf_poses = np.zeros((0, 4, 4))
+        self._trajectory: list | None = None
+        self._traj_xyz = np.zeros((0, 3))
+        self._state: str | None = None
+        self._grid = False
+        self._error: BaseException | None = None
+        self._log_static()
+        self._thread = threading.Thread(target=self._run, name="ptam-viewer", daemon=True)
+        self._thread.start()
+
+    # -- tracker's thread ------------------------------------------------------------------------------------
+    def __call__(self, outcome, system) -> None:
+        t0 = time.perf_counter()
+        item = self._capture(outcome, system)
+        try:
+            self.queue.put_nowait(item)
+        except queue.Full:
+            self.dropped += 1
+        self.observe_ms.append(1e3 * (time.perf_counter() - t0))
+
+    def _capture(self, outcome, system) -> _Item:
+        initialising = outcome is not None and outcome.state == INITIALISING
+        trails = (system.trails.start_xy, system.trails.current_xy) if initialising and system.init_started else None
+        return _Item(outcome, state_of(outcome) if outcome is not None else self._state or INITIALISING,
+                     system.mapper.snapshot, system.trajectory, len(system.trajectory), trails,
+                     system.mapper.queue_size(), system.mapper.stats.get("ba_running"))
+
+    def close(self, system=None) -> None:
+        """Log ``system``'s final map and trajectory (never dropped), stop the logging thread, flush."""
+        if self._thread.is_alive():
+            if system is not None:
+                self.queue.put(self._capture(None, system))
+            self.queue.put(None)
+            self._thread.join()
+        self.rec.flush()
+
+    # -- logging thread --------------------------------------------------------------------------------------
+    def _run(self) -> None:
+        while True:
+            item = self.queue.get()
+            if item is None:
+                return
+            try:
+                self._log(item)
+            except Exception as e:  # a display problem must never stop tracking; remember the first one
+                self._error = self._error or e
+
+    @property
+    def error(self) -> BaseException | None:
+        """The first exception raised while logging, if any (logging continues after it)."""
+        return self._error
+
+    def _log_static(self) -> None:
+        rec, c = self.rec, self.cfg
+        rec.send_blueprint(default_blueprint())
+        rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)  # PTAM §6.1: +z from the plane to the camera
+        f, pp, size = scene.level_intrinsics(self.camera, 0)
+        rec.log("world/camera/image", rr.Pinhole(focal_length=f, principal_point=pp, resolution=size,
+                                                 image_plane_distance=c.camera_frustum_depth), static=True)
+        names = list(style.STATE_COLOURS)
+        rec.log("state", rr.StateConfiguration(values=names, colors=[style.STATE_COLOURS[n] for n in names]),
+                static=True)
+
+    def _emit(self, path: str, *archetypes) -> None:
+        self.rec.log(path, *archetypes)
+        time.sleep(0)  # hand the GIL to the tracker if it waits for it: the logger never holds it for long
+
+    def _log(self, item: _Item) -> None:
+        o = item.outcome
+        if o is not None:
+            self.rec.set_time("frame", sequence=int(o.index))
+            self.rec.set_time("time", duration=float(o.timestamp))
+        if item.state != self._state:
+            self._emit("state", rr.StateChange(state=item.state))
+            self._state = item.state
+        if o is not None:
+            self._log_frame(o, item)
+        if item.snapshot is not self._snapshot:
+            self._log_map(item.snapshot)
+        self._log_trajectory(item.trajectory, item.n_trajectory)
+        self._log_plots(o, item)
+
+    def _log_frame(self, o, item: _Item) -> None:
+        c = self.cfg
+        frame = o.frame
+        if frame is not None:
+            img = frame.colour if frame.colour is not None else frame.image
+            ok, jpeg = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, c.jpeg_quality])
+            if ok:
+                self._emit("world/camera/image", rr.EncodedImage(contents=jpeg.tobytes(), media_type="image/jpeg"))
+        if o.T_cw is not None:
+            T_wc = se3.inv(o.T_cw)
+            self._emit("world/camera", rr.Transform3D(translation=T_wc[:3, 3], mat3x3=T_wc[:3, :3]))
+        found_xy, found_level, failed_xy = np.zeros((0, 2)), np.zeros(0, np.int8), np.zeros((0, 2))
+        if o.result is not None and item.snapshot is not None:
+            m = o.result.measurements
+            found_xy, found_level = m.xy[m.found], m.level[m.found]
+            missed = m.point_ids[~m.found]
+            if len(missed):
+                Xc = se3.transform(o.result.T_cw, item.snapshot.X[missed])
+                failed_xy = self.camera.project(Xc[Xc[:, 2] > 0])
+        off = scene.RERUN_PIXEL_OFFSET
+        self._emit("world/camera/image/found", rr.Points2D(found_xy + off, colors=style.level_colours(found_level),
+                                                        radii=c.measurement_radius_px))
+        self._emit("world/camera/image/failed", rr.Points2D(failed_xy + off, colors=style.FAILED_COLOUR,
+                                                         radii=c.failed_radius_px))
+        start, current = (np.zeros((0, 2)), np.zeros((0, 2))) if item.trails is None else item.trails
+        self._emit("world/camera/image/trails", rr.Arrows2D(origins=np.asarray(start, np.float64) + off,
+                                                         vectors=np.asarray(current - start, np.float64),
+                                                         colors=style.TRAIL_COLOUR))
+
+    def _log_map(self, snap: MapSnapshot | None) -> None:
+        c = self.cfg
+        self._snapshot = snap
+        keyframes = snap.keyframes if snap is not None else ()
+        if self._kf_logged and (not keyframes or keyframes[0] is not self._kf_logged[0]):
+            # A new map (System.reset): forget everything drawn for the old one.
+            self._emit("world/keyframes", rr.Clear(recursive=True))
+            self._emit("world/grid", rr.Clear(recursive=False))
+            self._kf_logged, self._kf_poses, self._grid = (), np.zeros((0, 4, 4)), False
+        if snap is None:
+            self._emit("world/points", rr.Points3D(np.zeros((0, 3))))
+            return
+        good = snap.good_point_indices
+        self._emit("world/points", rr.Points3D(snap.X[good], colors=style.level_colours(snap.source_level[good]),
+                                            radii=rr.Radius.ui_points(c.point_radius_ui)))
+        n_old = len(self._kf_logged)
+        T_wc = np.linalg.inv(snap.kf_T_cw)
+        moved = np.ones(len(keyframes), bool)
+        moved[:n_old] = np.any(self._kf_poses[:n_old] != snap.kf_T_cw[:n_old], axis=(1, 2))
+        level = min(c.thumbnail_level, len(keyframes[0].pyramid.levels) - 1) if keyframes else 0
+        f, pp, size = scene.level_intrinsics(self.camera, level)
+        for i in np.flatnonzero(moved):
+            path = f"world/keyframes/{i:04d}"
+            self._emit(path, rr.Transform3D(translation=T_wc[i, :3, 3], mat3x3=T_wc[i, :3, :3]))
+            if i >= n_old:
+                self._emit(f"{path}/image", rr.Pinhole(focal_length=f, principal_point=pp, resolution=size,
+                                                    image_plane_distance=c.frustum_depth,
+                                                    color=style.KEYFRAME_COLOUR),
+                        rr.Image(keyframes[i].pyramid.levels[level]))
+        self._kf_logged, self._kf_poses = keyframes, np.array(snap.kf_T_cw)
+        if keyframes and not self._grid:
+            lines, axis = scene.grid_lines(c.grid_spacing, c.grid_half_cells)
+            colours = np.where(axis[:, None], style.GRID_AXIS_COLOUR, style.GRID_COLOUR).astype(np.uint8)
+            self._emit("world/grid", rr.LineStrips3D(lines, colors=colours))
+            self._grid = True
+
+    def _log_trajectory(self, trajectory: list, n: int) -> None:
+        if trajectory is not self._trajectory:  # the first frame, or a new map after System.reset
+            self._trajectory, self._traj_xyz = trajectory, np.zeros((0, 3))
+        elif n == len(self._traj_xyz):
+            return
+        new = [T[:3, 3] for _, T in trajectory[len(self._traj_xyz):n]]
+        if new:
+            self._traj_xyz = np.concatenate([self._traj_xyz, np.array(new)])
+        self._emit("world/trajectory", rr.LineStrips3D([self._traj_xyz], colors=style.TRAJECTORY_COLOUR))
+
+    def _log_plots(self, o, item: _Item) -> None:
+        snap = item.snapshot
+        if o is not None and o.result is not None:
+            self._emit("plots/tracking/tracking_ms", rr.Scalars(o.result.timings.total))
+        self._emit("plots/map/points", rr.Scalars(snap.n_points if snap is not None else 0))
+        self._emit("plots/keyframes/keyframes", rr.Scalars(snap.n_keyframes if snap is not None else 0))
+        self._emit("plots/mapper/queue", rr.Scalars(item.mapper_queue))
+        self._emit("plots/mapper/bundle_adjustment", rr.Scalars(_BA_CODES.get(item.ba_running, 0)))

@@ -1,0 +1,56 @@
+"""Where the viewer's data goes: an .rrd file, and the web viewer served on 127.0.0.1 only."""
+
+import socket
+
+import pytest
+from rerun.chunk import RrdReader
+
+from ptam.camera import camera_from_dict
+from ptam.config import load_config
+from ptam.errors import InputError
+from ptam.viz.sinks import WebServer, open_recording
+from ptam.viz.viewer import Viewer
+
+CAMERA = {"model": "pinhole", "width": 640, "height": 480, "fx": 500.0, "fy": 500.0, "cx": 319.5, "cy": 239.5}
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _listening_addresses(port: int) -> set[str]:
+    """Local addresses of TCP sockets listening on ``port`` (IPv4, from /proc/net/tcp)."""
+    found = set()
+    for line in open("/proc/net/tcp").read().splitlines()[1:]:
+        local, state = line.split()[1], line.split()[3]
+        addr, p = local.split(":")
+        if int(p, 16) == port and state == "0A":
+            found.add(socket.inet_ntoa(bytes.fromhex(addr)[::-1]))
+    return found
+
+
+def test_rrd_recording_holds_the_static_layout(tmp_path):
+    cfg = load_config()
+    recording = open_recording(cfg.viewer, rrd=str(tmp_path / "run.rrd"))
+    Viewer(recording.stream, camera_from_dict(CAMERA), cfg).close()
+    recording.close()
+    entities = {c.entity_path for c in RrdReader(tmp_path / "run.rrd").stream().to_chunks()}
+    assert {"/world", "/world/camera/image", "/state"} <= entities
+    with pytest.raises(InputError, match="does not exist"):
+        open_recording(cfg.viewer, rrd=str(tmp_path / "no" / "run.rrd"))
+
+
+def test_web_viewer_listens_on_localhost_only_and_reports_a_busy_port():
+    grpc, web = _free_port(), _free_port()
+    cfg = load_config(overrides=[f"viewer.grpc_port={grpc}", f"viewer.web_port={web}"]).viewer
+    server = WebServer.start(cfg)
+    try:
+        assert _listening_addresses(grpc) == {"127.0.0.1"} and _listening_addresses(web) == {"127.0.0.1"}
+        assert server.url.startswith(f"http://127.0.0.1:{web}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A{grpc}")
+        with pytest.raises(InputError, match=f"port {grpc} on 127.0.0.1 is in use"):
+            WebServer.start(cfg)
+    finally:
+        server.close()
+    assert server.process.returncode is not None and not _listening_addresses(web)
