@@ -111,3 +111,15 @@ def test_missing_and_corrupt_files(tmp_path):
     bad.write_text("model: fov\nwidth: [\n")
     with pytest.raises(InputError, match="cannot read"):
         load_camera(bad)
+
+
+def test_bundled_camera_files_load_and_round_trip():
+    from ptam.resources import resource_path
+
+    files = sorted((resource_path("configs") / "cameras").glob("*.yaml"))
+    assert len(files) >= 4
+    for f in files:
+        cam = load_camera(f)
+        uv = np.array([[5.0, 5.0], [cam.width / 2, cam.height / 2], [cam.width - 6.0, cam.height - 6.0]])
+        xy = cam.unproject(uv)
+        assert np.max(np.abs(cam.project(np.concatenate([xy, np.ones((3, 1))], axis=1)) - uv)) < 1e-6
