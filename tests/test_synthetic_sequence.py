@@ -72,9 +72,9 @@ def test_cache_hit_does_not_render(tiny, tmp_path, monkeypatch):
     def fail(*a, **k):
         raise AssertionError("rendered again")
 
-    monkeypatch.setattr(Scene, "render_frame", fail)
-    assert ensure_sequence(tiny, cache_dir=cache) == d
-    monkeypatch.undo()
+    with monkeypatch.context() as m:  # undoes only this patch, not the fixture's removal of PTAM_CACHE_DIR
+        m.setattr(Scene, "render_frame", fail)
+        assert ensure_sequence(tiny, cache_dir=cache) == d
     assert ensure_sequence(tiny, cache_dir=cache, video=True) == d  # the video is added from the PNGs
     cap = cv2.VideoCapture(str(d / "video.avi"))
     assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == 6
