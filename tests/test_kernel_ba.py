@@ -6,6 +6,7 @@ import pytest
 from ptam.camera import FovCamera, PinholeCamera, RadTanCamera
 from ptam.geometry import se3
 from ptam.kernels import ba_kernels as K
+from ptam.kernels import ba_solve
 from ptam.mapping.bundle_structure import ReducedSolver, build_structure
 
 CAMERAS = {
@@ -139,8 +140,8 @@ def test_envelope_cholesky_on_a_banded_system():
     rhs = rng.normal(size=6 * nb)
     for dense in (True, False):
         rank = np.arange(nb) if dense else np.argsort(order)
-        first, ptr = K.ba_envelope(rows, cols, rank, dense)
-        x, ok = K.ba_envelope_solve(blocks, rows, cols, rank, first, ptr, rhs)
+        first, ptr = ba_solve.ba_envelope(rows, cols, rank, dense)
+        x, ok = ba_solve.ba_envelope_solve(blocks, rows, cols, rank, first, ptr, rhs)
         assert ok and close(x, np.linalg.solve(S, rhs), 1e-10)
         # Sparse: block row I keeps blocks max(0, I − band)..I, so 21·nb + 36·band·nb − 18·band·(band + 1) entries.
         band_size = 21 * nb + 36 * band * nb - 18 * band * (band + 1)
@@ -157,6 +158,6 @@ def test_pair_script(problem):
 
 def test_not_positive_definite_is_reported():
     one = np.zeros(1, np.int64)
-    first, ptr = K.ba_envelope(one, one, one, True)
-    _, ok = K.ba_envelope_solve(-np.eye(6)[None], one, one, one, first, ptr, np.ones(6))
+    first, ptr = ba_solve.ba_envelope(one, one, one, True)
+    _, ok = ba_solve.ba_envelope_solve(-np.eye(6)[None], one, one, one, first, ptr, np.ones(6))
     assert not ok

@@ -1,36 +1,36 @@
-"""``ptam bench WHAT``: the paper's timing tables measured on this machine (PTAM Tables 1 and 2)."""
+"""``ptam bench WHAT``: the papers' timing tables measured on this machine (PTAM Tables 1 and 2, Agility §6–§7).
+
+Each benchmark is a ``run_*_benchmark(cfg, scene)`` in ``ptam.eval``; ``all`` runs PTAM's two tables.
+"""
 
 from __future__ import annotations
 
-from ..errors import PtamError
+import importlib
+
+BENCHMARKS = {
+    "tracking": ("bench_tracking", "run_tracking_benchmark"),
+    "mapping": ("bench_mapping", "run_mapping_benchmark"),
+    "agility": ("bench_agility", "run_agility_benchmark"),
+    "ar": ("bench_ar", "run_ar_benchmark"),
+}
+ALL = ("tracking", "mapping")
+
+
+def _run(name: str, cfg, scene: str) -> None:
+    module, func = BENCHMARKS[name]
+    getattr(importlib.import_module(f"ptam.eval.{module}"), func)(cfg, scene)
 
 
 def main(args, cfg) -> int:
-    if args.what == "ba":
+    if args.what == "ba":  # synthetic PTAM-shaped maps, no scene
         from ..eval.bench_ba import run_ba_benchmark
+
         run_ba_benchmark(cfg)
-        return 0
-    if args.what == "tracking":
-        from ..eval.bench_tracking import run_tracking_benchmark
-        run_tracking_benchmark(cfg, args.scene)
-        return 0
-    if args.what == "mapping":
-        from ..eval.bench_mapping import run_mapping_benchmark
-        run_mapping_benchmark(cfg, args.scene)
-        return 0
-    if args.what == "agility":
-        from ..eval.bench_agility import run_agility_benchmark
-        run_agility_benchmark(cfg, args.scene)
-        return 0
-    if args.what == "ar":
-        from ..eval.bench_ar import run_ar_benchmark
-        run_ar_benchmark(cfg, args.scene)
-        return 0
-    if args.what == "all":
-        from ..eval.bench_mapping import run_mapping_benchmark
-        from ..eval.bench_tracking import run_tracking_benchmark
-        run_tracking_benchmark(cfg, args.scene)
-        print()
-        run_mapping_benchmark(cfg, args.scene)
-        return 0
-    raise PtamError(f"ptam bench {args.what}: not implemented yet")
+    elif args.what == "all":
+        for i, name in enumerate(ALL):
+            if i:
+                print()
+            _run(name, cfg, args.scene)
+    else:
+        _run(args.what, cfg, args.scene)
+    return 0

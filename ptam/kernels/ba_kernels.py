@@ -10,8 +10,7 @@ The structure is Hartley & Zisserman's sparse LM (MVG 2nd ed., A6.4), as PTAM's 
   blocks V (3×3), camera-point blocks W = AᵀB (6×3) and the gradients ε_a, ε_b.
 * ``ba_schur``: S = U* − Σ W V*⁻¹ Wᵀ over every camera pair that shares a point (the O(N²M)
   camera-point-camera products of §6.3) and the reduced right-hand side; * means the diagonal × (1 + λ).
-* ``ba_envelope`` / ``ba_envelope_solve``: Cholesky of S inside its envelope (dense: the whole lower
-  triangle; sparse: after a bandwidth-reducing reordering of the keyframes), GIL-free plain loops.
+* the Cholesky of S is in ``ba_solve.py``.
 * ``ba_backsub``: the point updates δp = V*⁻¹ (ε_b − Σ Wᵀ δμ).
 
 Measurements are sorted by point (``order``, ``pt_start``) and the camera pairs of each point are
@@ -337,116 +336,6 @@ def ba_schur(U, ea, V, eb, W, live, lam, mrow, pt_start, order, pair_id, blocks,
                 q += 1
                 if live[ka] and live[kb]:
                     _sub_wvwt(blocks, pid, WVa, W, kb)
-
-
-@njit(nogil=True, cache=True)
-def ba_envelope(pair_rows, pair_cols, rank, dense):
-    """Skyline layout of S's lower triangle with block r moved to position rank[r]: row i of L holds columns
-    first[i]..i at env[ptr[i]:ptr[i + 1]]. ``dense`` keeps whole rows (first = 0)."""
-    nb = rank.shape[0]
-    fb = np.zeros(nb, np.int64) if dense else np.arange(nb)
-    if not dense:
-        for q in range(pair_rows.shape[0]):
-            a = rank[pair_rows[q]]
-            b = rank[pair_cols[q]]
-            hi = max(a, b)
-            lo = min(a, b)
-            if lo < fb[hi]:
-                fb[hi] = lo
-    n = 6 * nb
-    first = np.empty(n, np.int64)
-    ptr = np.empty(n + 1, np.int64)
-    ptr[0] = 0
-    for i in range(n):
-        first[i] = 6 * fb[i // 6]
-        ptr[i + 1] = ptr[i] + i - first[i] + 1
-    return first, ptr
-
-
-@njit(nogil=True, cache=True, fastmath=True)
-def _envelope_cholesky(env, first, ptr, n):
-    """In-place L·Lᵀ of the envelope, six rows (one keyframe, one shared ``first``) at a time so each row of L
-    already computed is read once per keyframe rather than once per row. False if not positive definite."""
-    for r0 in range(0, n, 6):
-        f = first[r0]
-        o = np.empty(6, np.int64)
-        for a in range(6):
-            o[a] = ptr[r0 + a] - f
-        o0, o1, o2, o3, o4, o5 = o[0], o[1], o[2], o[3], o[4], o[5]
-        for j in range(f, r0):
-            oj = ptr[j] - first[j]
-            s0 = s1 = s2 = s3 = s4 = s5 = 0.0
-            for k in range(max(f, first[j]), j):
-                ljk = env[oj + k]
-                s0 += env[o0 + k] * ljk
-                s1 += env[o1 + k] * ljk
-                s2 += env[o2 + k] * ljk
-                s3 += env[o3 + k] * ljk
-                s4 += env[o4 + k] * ljk
-                s5 += env[o5 + k] * ljk
-            d = env[oj + j]
-            env[o0 + j] = (env[o0 + j] - s0) / d
-            env[o1 + j] = (env[o1 + j] - s1) / d
-            env[o2 + j] = (env[o2 + j] - s2) / d
-            env[o3 + j] = (env[o3 + j] - s3) / d
-            env[o4 + j] = (env[o4 + j] - s4) / d
-            env[o5 + j] = (env[o5 + j] - s5) / d
-        for a in range(6):
-            i = r0 + a
-            for j in range(r0, i + 1):
-                oj = ptr[j] - f
-                s = env[o[a] + j]
-                for k in range(f, j):
-                    s -= env[o[a] + k] * env[oj + k]
-                if j < i:
-                    env[o[a] + j] = s / env[oj + j]
-                elif s > 0.0:
-                    env[o[a] + i] = math.sqrt(s)
-                else:
-                    return False
-    return True
-
-
-@njit(nogil=True, cache=True, fastmath=True)
-def ba_envelope_solve(blocks, pair_rows, pair_cols, rank, first, ptr, rhs):
-    """Solve S x = rhs by a Cholesky factorisation inside the envelope (fill-in never leaves it).
-
-    Plain loops instead of LAPACK: OpenBLAS threads would compete with the tracker's thread (and are
-    orders of magnitude slower on a loaded machine). Returns (x, ok); ok is False when S is not positive
-    definite (PTAM code: Cholesky failure, "the map is probably corrupt").
-    """
-    n = rhs.shape[0]
-    env = np.zeros(ptr[n])
-    for q in range(blocks.shape[0]):
-        R = 6 * rank[pair_rows[q]]
-        C = 6 * rank[pair_cols[q]]
-        for a in range(6):
-            for b in range(6):
-                i, j = (R + a, C + b) if R >= C else (C + b, R + a)
-                if j <= i:
-                    env[ptr[i] + j - first[i]] = blocks[q, a, b]
-    if not _envelope_cholesky(env, first, ptr, n):
-        return np.zeros(n), False
-    y = np.empty(n)
-    for r in range(rank.shape[0]):
-        for a in range(6):
-            y[6 * rank[r] + a] = rhs[6 * r + a]
-    for i in range(n):
-        oi = ptr[i] - first[i]
-        s = y[i]
-        for k in range(first[i], i):
-            s -= env[oi + k] * y[k]
-        y[i] = s / env[oi + i]
-    for i in range(n - 1, -1, -1):
-        oi = ptr[i] - first[i]
-        y[i] /= env[oi + i]
-        for k in range(first[i], i):
-            y[k] -= env[oi + k] * y[i]
-    x = np.empty(n)
-    for r in range(rank.shape[0]):
-        for a in range(6):
-            x[6 * r + a] = y[6 * rank[r] + a]
-    return x, True
 
 
 @njit(nogil=True, cache=True)
