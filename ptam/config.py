@@ -144,6 +144,7 @@ class MapperConfig:
     epipolar_box_samples: int
     epipolar_band_px: float
     refind_radius_px: int
+    bad_point_min_outliers: int
     local_ba_min_keyframes: int
     outlier_min_good_measurements: int
 

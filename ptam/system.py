@@ -206,6 +206,9 @@ class System:
             if res.lost and self.state != LOST:
                 self.stats.lost_events += 1
             self.state = LOST if res.lost else TRACKING
+        if not recovering and not self.localize_only:
+            m = res.measurements
+            self.mapper.report_tracking(m.point_ids[m.found & m.inlier], m.point_ids[m.found & ~m.inlier])
         T = res.T_cw if res.tracked else None
         if T is not None and record:
             self.trajectory.append((res.timestamp, se3.inv(T)))

@@ -61,6 +61,11 @@ class MapMaker:
         self._never_retry: dict[int, np.ndarray] = {}  # keyframe -> bool per point: do not search again
         self._failure_queue: list[tuple[int, int]] = []
         self._new_points: list[np.ndarray] = []
+        # Tracker feedback (PTAM code: MapPoint::nMEstimatorInlier/OutlierCount, counted in the tracker's final
+        # pose update): the tracker's thread appends (inlier ids, outlier ids) per frame, the mapper drains them.
+        self.tracker_feedback: deque[tuple[np.ndarray, np.ndarray]] = deque()
+        self._inlier_count = np.zeros(0, np.int64)
+        self._outlier_count = np.zeros(0, np.int64)
         self.recent_converged = True
         self.full_converged = True
         # Keyframe spacing: the initial baseline over the first keyframe's mean depth (PTAM code
@@ -102,6 +107,8 @@ class MapMaker:
         """Do the most pressing job (PTAM's MapMaker::run order); False when there was nothing to do."""
         if not self.initialised:
             return False
+        if self._handle_bad_points():
+            self.publish()
         if self.queue:
             self._integrate(self.queue.popleft())
         elif not self.recent_converged:
@@ -115,6 +122,31 @@ class MapMaker:
         else:
             return False
         self.publish()
+        return True
+
+    def report_tracking(self, inlier_ids: np.ndarray, outlier_ids: np.ndarray) -> None:
+        """Called from the tracker's thread with one frame's Tukey inliers and outliers (point ids)."""
+        self.tracker_feedback.append((inlier_ids, outlier_ids))
+
+    def _handle_bad_points(self) -> bool:
+        """PTAM code ``HandleBadPoints``: a point the tracker saw as an outlier more than ``bad_point_min_outliers``
+        times, and more often than as an inlier, is bad. Returns whether any point was marked."""
+        if not self.tracker_feedback:
+            return False
+        n = self.map.n_points_total
+        for name in ("_inlier_count", "_outlier_count"):
+            a = getattr(self, name)
+            if len(a) < n:
+                setattr(self, name, np.concatenate([a, np.zeros(n - len(a), np.int64)]))
+        while self.tracker_feedback:
+            inl, out = self.tracker_feedback.popleft()
+            np.add.at(self._inlier_count, inl[inl < n], 1)
+            np.add.at(self._outlier_count, out[out < n], 1)
+        bad = ((self._outlier_count[:n] > self.cfg.mapper.bad_point_min_outliers)
+               & (self._outlier_count[:n] > self._inlier_count[:n]) & ~self.map.bad)
+        if not bad.any():
+            return False
+        self.map.mark_bad(np.flatnonzero(bad))
         return True
 
     def run_until_idle(self, max_steps: int = 10_000) -> None:
