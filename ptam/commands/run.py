@@ -26,7 +26,8 @@ from ..capture import find_calibration, open_source
 from ..capture.keys import TerminalKeys
 from ..capture.realtime import RealtimeFeed
 from ..errors import InputError, PtamError
-from ..eval import associate, ate, read_tum, write_tum
+from ..eval import write_tum
+from ..eval.score import score_trajectory
 from ..image.pyramid import Pyramid
 from ..map.io import load_map, save_map
 from ..system import System
@@ -145,19 +146,14 @@ def _write_outputs(args, system: System, camera, cfg) -> None:
 
 def _score(dataset: str | None, system: System, embedded: bool) -> None:
     gt = Path(dataset) / "groundtruth.txt" if dataset else None
-    if gt is None or not gt.is_file() or len(system.trajectory) < 3:
+    if gt is None or not gt.is_file():
         return
-    t_gt, T_gt = read_tum(gt)
-    t = np.array([p[0] for p in system.trajectory])
-    T = np.array([p[1] for p in system.trajectory])
-    ig, ie = associate(t_gt, t, 0.01)
-    if len(ig) < 3:
+    r = score_trajectory(gt, system.trajectory)
+    if not np.isfinite(r.ate_rmse_m):
         return
-    r = ate(T_gt[ig, :3, 3], T[ie, :3, 3])
-    length = float(np.linalg.norm(np.diff(T_gt[:, :3, 3], axis=0), axis=1).sum())
     paper = f" (PTAM §7.3 reports {PAPER_ATE_MM:g} mm on its two-wall sequence)" if embedded else ""
-    print(f"ATE against {gt}: {1e3 * r.rmse:.2f} mm RMSE after Sim(3) alignment over {len(ig)}/{len(t_gt)} "
-          f"poses, path {length:.2f} m{paper}")
+    print(f"ATE against {gt}: {1e3 * r.ate_rmse_m:.2f} mm RMSE after Sim(3) alignment over {r.matched}/"
+          f"{r.n_groundtruth} poses, path {r.path_length_m:.2f} m{paper}")
 
 
 def _status(system: System, outcome, feed):

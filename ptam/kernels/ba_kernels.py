@@ -37,6 +37,16 @@ MAD_TO_SIGMA = 1.4826
 # ---------------------------------------------------------------------------------------------------------
 # Residuals, Tukey
 # ---------------------------------------------------------------------------------------------------------
+@njit(nogil=True, cache=True, inline="always")
+def _to_camera(T, points, p):
+    """Point p of ``points`` in the frame of pose T (4×4 world-to-camera)."""
+    X = points[p, 0]
+    Y = points[p, 1]
+    Z = points[p, 2]
+    return (T[0, 0] * X + T[0, 1] * Y + T[0, 2] * Z + T[0, 3], T[1, 0] * X + T[1, 1] * Y + T[1, 2] * Z + T[1, 3],
+            T[2, 0] * X + T[2, 1] * Y + T[2, 2] * Z + T[2, 3])
+
+
 @njit(nogil=True, cache=True)
 def ba_residuals(cam, poses, points, mcam, mpt, uv, inv_sigma, use, err, e2, bad):
     """Normalised errors err (K, 2), |err|² e2 (K,), bad (K,) = behind the camera, for measurements in ``use``."""
@@ -49,12 +59,7 @@ def ba_residuals(cam, poses, points, mcam, mpt, uv, inv_sigma, use, err, e2, bad
             continue
         T = poses[mcam[k]]
         p = mpt[k]
-        X = points[p, 0]
-        Y = points[p, 1]
-        Z = points[p, 2]
-        xc = T[0, 0] * X + T[0, 1] * Y + T[0, 2] * Z + T[0, 3]
-        yc = T[1, 0] * X + T[1, 1] * Y + T[1, 2] * Z + T[1, 3]
-        zc = T[2, 0] * X + T[2, 1] * Y + T[2, 2] * Z + T[2, 3]
+        xc, yc, zc = _to_camera(T, points, p)
         if zc <= 0.0:
             bad[k] = True
             continue
@@ -133,12 +138,7 @@ def ba_linearise(cam, poses, points, mcam, mpt, uv, inv_sigma, use, c2, cam_row,
             continue
         T = poses[mcam[k]]
         p = mpt[k]
-        X = points[p, 0]
-        Y = points[p, 1]
-        Z = points[p, 2]
-        xc = T[0, 0] * X + T[0, 1] * Y + T[0, 2] * Z + T[0, 3]
-        yc = T[1, 0] * X + T[1, 1] * Y + T[1, 2] * Z + T[1, 3]
-        zc = T[2, 0] * X + T[2, 1] * Y + T[2, 2] * Z + T[2, 3]
+        xc, yc, zc = _to_camera(T, points, p)
         if zc <= 0.0:
             cost += 1.0
             continue

@@ -17,6 +17,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .small_linalg import cholesky_solve
+
 _PIVOT_EPS = 1e-12  # relative to the largest diagonal entry: below this the system is singular
 
 
@@ -41,42 +43,6 @@ def _warp(image, out, valid, c, s, tx, ty, cx, cy):
             b = image[y0 + 1, x0] + fx * (image[y0 + 1, x0 + 1] - image[y0 + 1, x0])
             out[y, x] = a + fy * (b - a)
             valid[y, x] = True
-
-
-@njit(nogil=True, cache=True)
-def _cholesky_solve(A, b, n):
-    """Solve A[:n, :n] x = b[:n] in place of a copy; returns (x, ok)."""
-    L = np.zeros((n, n))
-    x = np.zeros(4)
-    big = 0.0
-    for i in range(n):
-        big = max(big, A[i, i])
-    if big <= 0.0:
-        return x, False
-    for j in range(n):
-        d = A[j, j]
-        for k in range(j):
-            d -= L[j, k] * L[j, k]
-        if d <= _PIVOT_EPS * big:
-            return x, False
-        L[j, j] = np.sqrt(d)
-        for i in range(j + 1, n):
-            e = A[i, j]
-            for k in range(j):
-                e -= L[i, k] * L[j, k]
-            L[i, j] = e / L[j, j]
-    z = np.zeros(n)
-    for i in range(n):
-        e = b[i]
-        for k in range(i):
-            e -= L[i, k] * z[k]
-        z[i] = e / L[i, i]
-    for i in range(n - 1, -1, -1):
-        e = z[i]
-        for k in range(i + 1, n):
-            e -= L[k, i] * x[k]
-        x[i] = e / L[i, i]
-    return x, True
 
 
 @njit(nogil=True, cache=True)
@@ -135,7 +101,7 @@ def esm_se2(image, template, template_grad, params0, iterations, with_offset):
         A[1, 3] = A[3, 1] = a31
         A[2, 3] = A[3, 2] = a32
         b[0], b[1], b[2], b[3] = b0, b1, b2, b3
-        u, ok = _cholesky_solve(A, b, n)
+        u, ok = cholesky_solve(A, b, n, _PIVOT_EPS)
         if not ok:
             break
         # w <- w o (R(-u_theta), -u_t): the template-side increment rotated into the current image.

@@ -22,6 +22,7 @@ from numba import njit
 
 from ..geometry import se3
 from .camproj import project_jac
+from .small_linalg import cholesky_solve
 
 MAD_TO_SIGMA = 1.4826  # median absolute deviation -> standard deviation of a normal distribution
 TUKEY_C = 4.6851  # Tukey's constant for 95% efficiency under Gaussian noise
@@ -58,36 +59,6 @@ def normal_equations(J, r, inv_sigma, w):
         for b in range(a):
             H[a, b] = H[b, a]
     return H, g
-
-
-@njit(nogil=True, cache=True)
-def _cholesky_solve(H, g):
-    n = H.shape[0]
-    Lm = np.zeros((n, n))
-    for i in range(n):
-        for j in range(i + 1):
-            s = H[i, j]
-            for k in range(j):
-                s -= Lm[i, k] * Lm[j, k]
-            if i == j:
-                if s <= 0.0:
-                    return np.zeros(n), False
-                Lm[i, i] = math.sqrt(s)
-            else:
-                Lm[i, j] = s / Lm[j, j]
-    y = np.zeros(n)
-    for i in range(n):
-        s = g[i]
-        for k in range(i):
-            s -= Lm[i, k] * y[k]
-        y[i] = s / Lm[i, i]
-    x = np.zeros(n)
-    for i in range(n - 1, -1, -1):
-        s = y[i]
-        for k in range(i + 1, n):
-            s -= Lm[k, i] * x[k]
-        x[i] = s / Lm[i, i]
-    return x, True
 
 
 @njit(nogil=True, cache=True)
@@ -188,7 +159,7 @@ def pose_irls(cam, T_cw, X, meas, inv_sigma, n_iters, relinearise_every, min_sig
         H, g = normal_equations(J, r, inv_sigma, w)
         for a in range(6):
             H[a, a] += prior
-        mu, ok = _cholesky_solve(H, g)
+        mu, ok = cholesky_solve(H, g, 6, 0.0)
         if not ok:
             break
         T = se3_exp(mu) @ T
