@@ -10,6 +10,7 @@ import argparse
 import sys
 
 from .errors import PtamError
+from .vocabulary import ArScene, RunMode, choices
 
 
 def _add_config_args(p: argparse.ArgumentParser) -> None:
@@ -31,7 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--calibration", metavar="CAMERA.yaml", help="camera calibration (default: DIR/camera.yaml)")
     run.add_argument("--fps", type=float, help="frame rate for image folders / requested camera rate")
     run.add_argument("--size", metavar="WxH", help="requested live camera size, e.g. 640x480")
-    run.add_argument("--mode", choices=["sync", "async", "realtime"],
+    run.add_argument("--mode", choices=choices(RunMode),
                      help="threading mode (default: async; realtime for --camera)")
     run.add_argument("--init-frames", metavar="A,B", help="take the stereo-initialisation keyframes at frames A and B")
     run.add_argument("--trajectory", metavar="FILE", help="write the camera trajectory (TUM format)")
@@ -43,7 +44,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--rrd", metavar="FILE", help="record the viewer's data to a rerun .rrd file")
     run.add_argument("--serve", action="store_true", help="serve the web viewer on 127.0.0.1 (kept until Ctrl-C)")
     run.add_argument("--no-viewer", action="store_true", help="do not open a viewer (log nothing)")
-    run.add_argument("--ar", choices=["eyes", "game", "grid", "off"], help="AR scene on the dominant plane "
+    run.add_argument("--ar", choices=choices(ArScene), help="AR scene on the dominant plane "
                      "(PTAM §7.5; default: config ar.scene)")
     run.add_argument("--ar-video", metavar="FILE",
                      help="write the augmented frames, one per tracked frame (.avi or .mp4)")

@@ -27,19 +27,22 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .camera.model import CameraModel
+from .config import Config
 from .geometry import se3
 from .image.pyramid import Pyramid
+from .map.map import Map
 from .mapping.map_maker import KeyframeRequest, MapMaker
 from .mapping.stereo_init import init_from_stereo
 from .mapping.two_view import InitFailure
-from .tracking.quality import GOOD
 from .tracking.relocaliser import Relocaliser
 from .tracking.tracker import Tracker
 from .tracking.trails import TrailTracker
+from .vocabulary import InitMode, Quality, RunMode, TrackingState
 
 log = logging.getLogger("ptam")
 
-INITIALISING, TRACKING, LOST, RELOCALISING = "initialising", "tracking", "lost", "relocalising"
+INITIALISING, LOST, RELOCALISING = TrackingState.INITIALISING, TrackingState.LOST, TrackingState.RELOCALISING
 
 
 @dataclass
@@ -48,7 +51,7 @@ class FrameOutcome:
 
     index: int
     timestamp: float
-    state: str
+    state: TrackingState
     T_cw: np.ndarray | None
     result: object = None
     keyframe_added: bool = False
@@ -69,6 +72,10 @@ class RunStats:
     track_ms: list = field(default_factory=list)
 
 
+def _tracked_state(res) -> TrackingState:
+    return TrackingState.GOOD if res.quality == Quality.GOOD else TrackingState.POOR
+
+
 class System:
     """``map_``: start from an existing map (e.g. loaded from a file) instead of initialising; the tracker starts
     at its first keyframe with the coarse stage forced. ``localize_only``: track against the map without adding
@@ -76,13 +83,13 @@ class System:
     the tracker's thread (the viewer); they must be cheap and must not block. ``init_mode``: ``"auto"`` or
     ``"key"`` (stereo initialisation keyframes taken by :meth:`request_keyframe`)."""
 
-    def __init__(self, camera, cfg, mode: str | None = None, init_frames: tuple[int, int] | None = None,
-                 map_=None, localize_only: bool = False, init_mode: str = "auto"):
-        if init_mode not in ("auto", "key"):
-            raise ValueError(f"init_mode must be 'auto' or 'key', got {init_mode!r}")
+    def __init__(self, camera: CameraModel, cfg: Config, mode: RunMode | str | None = None,
+                 init_frames: tuple[int, int] | None = None, map_: Map | None = None, localize_only: bool = False,
+                 init_mode: InitMode | str = InitMode.AUTO):
+        init_mode = InitMode(init_mode)
         self.camera = camera
         self.cfg = cfg
-        self.mode = mode or cfg.system.mode
+        self.mode = RunMode(mode or cfg.system.mode)
         self.init_frames = init_frames
         self.init_mode = init_mode
         self._key_pressed = False
@@ -94,7 +101,7 @@ class System:
         self.state = INITIALISING
         self.observers: list = []
         if self.mapper.initialised:
-            self.state = TRACKING
+            self.state = TrackingState.GOOD
             self.tracker.set_pose(self.mapper.map.kf_T_cw[0], recovered=True)
         self.trajectory: list[tuple[float, np.ndarray]] = []  # (timestamp, T_wc) per tracked frame
         self.stats = RunStats()
@@ -108,7 +115,7 @@ class System:
 
     # -- threads -------------------------------------------------------------------------------------------
     def start(self) -> System:
-        if self.mode != "sync" and not self.localize_only and self._thread is None:
+        if self.mode != RunMode.SYNC and not self.localize_only and self._thread is None:
             self._thread = threading.Thread(target=self._mapper_loop, name="ptam-mapper", daemon=True)
             self._thread.start()
         return self
@@ -146,7 +153,7 @@ class System:
         """The user's key press of stereo initialisation (PTAM §6.1): the first press takes the first keyframe
         and starts the trails, the second takes the second keyframe and builds the map. Ignored in ``auto``
         mode and once a map exists."""
-        self._key_pressed = self.init_mode == "key" and not self.mapper.initialised
+        self._key_pressed = self.init_mode == InitMode.KEY and not self.mapper.initialised
 
     @property
     def init_started(self) -> bool:
@@ -199,13 +206,13 @@ class System:
         res = self.tracker.track(frame, snapshot, pyramid)
         self.stats.track_ms.append(res.timings.total)
         if recovering:
-            self.state = RELOCALISING if res.lost else TRACKING
+            self.state = RELOCALISING if res.lost else _tracked_state(res)
             if not res.lost:
                 self.stats.relocalisations += 1
         else:
             if res.lost and self.state != LOST:
                 self.stats.lost_events += 1
-            self.state = LOST if res.lost else TRACKING
+            self.state = LOST if res.lost else _tracked_state(res)
         if not recovering and not self.localize_only:
             m = res.measurements
             self.mapper.report_tracking(m.point_ids[m.found & m.inlier], m.point_ids[m.found & ~m.inlier])
@@ -222,7 +229,7 @@ class System:
         m = self.cfg.mapper
         kf = res.keyframe
         if self.localize_only or res.rapid_motion or not (
-                res.quality == GOOD and kf.frames_since_keyframe > m.kf_min_frames
+                res.quality == Quality.GOOD and kf.frames_since_keyframe > m.kf_min_frames
                 and self.mapper.queue_size() < m.kf_max_queue
                 and self.mapper.need_new_keyframe(kf.nearest_keyframe_distance, kf.mean_scene_depth)):
             return False
@@ -233,7 +240,7 @@ class System:
                                                  kf.scene_depth_sigma))
         self.tracker.keyframe_added()
         self.stats.keyframes_requested += 1
-        if self.mode == "sync":
+        if self.mode == RunMode.SYNC:
             self.mapper.run_until_idle()
         else:
             self._wake.set()
@@ -258,9 +265,9 @@ class System:
         idle = FrameOutcome(int(frame.index), float(frame.timestamp), INITIALISING, None)
         key, self._key_pressed = self._key_pressed, False
         fixed = self.init_frames
-        restarts = self.init_mode == "auto" and fixed is None  # else each attempt waits for its own trigger
+        restarts = self.init_mode == InitMode.AUTO and fixed is None  # else each attempt waits for its own trigger
         if self._first is None:
-            start = key if self.init_mode == "key" else (fixed is None or frame.index == fixed[0])
+            start = key if self.init_mode == InitMode.KEY else (fixed is None or frame.index == fixed[0])
             if start:
                 self._restart_init(pyramid, frame, None)
             return idle
@@ -274,7 +281,7 @@ class System:
             return idle
         self._init_frames.append(frame)
         f = 0.5 * (self.camera.fx + self.camera.fy)
-        if self.init_mode == "key":
+        if self.init_mode == InitMode.KEY:
             if not key:
                 return idle
         elif fixed is not None:
@@ -299,7 +306,7 @@ class System:
         log.info("map initialised from frames %d and %d: %d points", first[2], frame.index,
                  self.mapper.snapshot.n_points)
         self._after_init(first, frame, T)
-        return FrameOutcome(int(frame.index), float(frame.timestamp), TRACKING, T, None, True)
+        return FrameOutcome(int(frame.index), float(frame.timestamp), TrackingState.GOOD, T, None, True)
 
     def _after_init(self, first, frame, T_second) -> None:
         """Record both keyframes' poses and, for frames in between, track them against the new map."""
@@ -315,13 +322,14 @@ class System:
         self._init_frames = []
         self.tracker.reset()
         self.tracker.set_pose(T_second)
-        self.state = TRACKING
-        if self.mode != "sync":
+        self.state = TrackingState.GOOD
+        if self.mode != RunMode.SYNC:
             self._wake.set()
 
 
-def run_dataset(path, cfg, mode: str | None = None, **kwargs) -> System:
-    """Run a whole dataset folder (TUM/EuRoC/images with its ``camera.yaml``) through a System; returns it."""
+def run_dataset(path, cfg: Config, mode: RunMode | str | None = None, **kwargs) -> System:
+    """Run a whole dataset folder (TUM/EuRoC/images with its ``camera.yaml``, stamped at ``capture.default_fps``
+    where the dataset has no timestamps) through a System; returns it."""
     from pathlib import Path
 
     from .camera import load_camera
@@ -329,7 +337,7 @@ def run_dataset(path, cfg, mode: str | None = None, **kwargs) -> System:
 
     path = Path(path)
     camera = load_camera(path / "camera.yaml")
-    with open_dataset(path) as src, System(camera, cfg, mode=mode, **kwargs) as system:
+    with open_dataset(path, cfg.capture.default_fps) as src, System(camera, cfg, mode=mode, **kwargs) as system:
         for frame in src:
             system.process(frame)
     return system

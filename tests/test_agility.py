@@ -13,9 +13,10 @@ import pytest
 from ptam.camera import load_camera
 from ptam.capture import open_dataset
 from ptam.config import load_config
-from ptam.synthetic import ensure_sequence, load_scene
-from ptam.system import LOST, RELOCALISING, TRACKING, System
+from ptam.synthetic import load_scene
+from ptam.system import LOST, RELOCALISING, System
 from ptam.tracking.quality import GOOD
+from tests.support import capture, sequence
 
 KIDNAP_BLACK = (80, 109)
 SACCADE_PANS = ((75, 80), (95, 100))
@@ -33,9 +34,9 @@ class Run:
 
 def _run(scene: str, **overrides) -> Run:
     cfg = load_config().replace(**overrides) if overrides else load_config()
-    d = ensure_sequence(scene)
+    d = sequence(scene)
     outcomes, pts, kfs, ver = [], [], [], []
-    with open_dataset(d) as src, System(load_camera(d / "camera.yaml"), cfg, mode="sync") as system:
+    with open_dataset(d, capture().default_fps) as src, System(load_camera(d / "camera.yaml"), cfg, mode="sync") as system:
         for frame in src:
             outcomes.append(system.process(frame))
             snap = system.mapper.snapshot
@@ -83,9 +84,9 @@ def saccade_off():
 def test_kidnap_relocalises_within_five_frames_and_stays_accurate(kidnap):
     first_black, last_black = KIDNAP_BLACK
     states = {o.index: o.state for o in kidnap.outcomes}
-    assert all(states[i] == TRACKING for i in range(50, first_black))
+    assert all(states[i].is_tracking for i in range(50, first_black))
     assert all(states[i] in (LOST, RELOCALISING) for i in range(first_black + 3, last_black + 1))
-    back = next(i for i in range(last_black + 1, len(states)) if states[i] == TRACKING)
+    back = next(i for i in range(last_black + 1, len(states)) if states[i].is_tracking)
     stats = kidnap.system.stats
     idx, err, ang = _aligned_errors("kidnap", kidnap)
     before = idx < first_black
@@ -130,7 +131,7 @@ def test_saccade_is_tracked_through_with_the_rotation_estimator(saccade_on):
           f"rotation error {ang[in_pans].max():.2f} deg max; around them: {1e3 * err[rest].max():.1f} mm, "
           f"{ang[rest].max():.2f} deg max")
     assert stats.lost_events == 0 and stats.relocalisations == 0
-    assert all(o.state == TRACKING for o in run.outcomes if o.index >= 40)
+    assert all(o.state.is_tracking for o in run.outcomes if o.index >= 40)
     assert in_pans.sum() == sum(b - a - 1 for a, b in SACCADE_PANS)  # every blurred frame has a pose
     # Agility §8: failure detection suspended at the pans' peak speed, and only during the pans
     rapid = {o.index for o in run.outcomes if o.result is not None and o.result.rapid_motion}

@@ -10,14 +10,15 @@ from ptam.camera import FovCamera
 from ptam.config import load_config
 from ptam.geometry import se3, so3
 from ptam.image.pyramid import Pyramid
+from ptam.image.sbi import SmallBlurryImage
 from ptam.map.keyframe import KeyFrame
 from ptam.map.map import Map
-from ptam.synthetic import ensure_sequence, load_scene
+from ptam.synthetic import load_scene
 from ptam.tracking.motion_model import MotionModel
 from ptam.tracking.quality import BAD, TrackingQuality
 from ptam.tracking.relocaliser import Relocaliser
 from ptam.tracking.rotation_estimator import RotationEstimator, rotation_from_se2, sample_offsets
-from ptam.tracking.sbi import SmallBlurryImage
+from tests.support import sequence
 
 CFG = load_config()
 
@@ -27,7 +28,7 @@ def _angle_deg(R):
 
 
 def _pyramids(scene, frames):
-    d = ensure_sequence(scene)
+    d = sequence(scene)
     return {i: Pyramid.build(cv2.imread(str(d / f"rgb/{i:06d}.png"), cv2.IMREAD_GRAYSCALE), CFG.image)
             for i in frames}
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import yaml
 
-from ptam.synthetic import ensure_sequence
+from tests.support import sequence
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 ENV = {**os.environ, "DISPLAY": "", "WAYLAND_DISPLAY": ""}
@@ -24,7 +24,7 @@ def ptam_run(*argv):
 
 
 def _truncated_video(tmp_path):
-    d = ensure_sequence("two_wall_short")
+    d = sequence("two_wall_short")
     path = tmp_path / "video.avi"
     writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 30, (640, 480), isColor=False)
     for i in range(20):
@@ -46,7 +46,7 @@ def _wrong_size_calibration(tmp_path):
 
 def _corrupt_map(tmp_path):
     (tmp_path / "map.npz").write_bytes(b"PK\x03\x04" + bytes(range(256)) * 8)
-    return ["--dataset", str(ensure_sequence("two_wall_short")), "--load-map", str(tmp_path / "map.npz")], \
+    return ["--dataset", str(sequence("two_wall_short")), "--load-map", str(tmp_path / "map.npz")], \
         "is not a ptam map file"
 
 
@@ -72,7 +72,7 @@ def test_bad_input_exits_2_with_one_line(case, tmp_path):
 
 
 def test_sigint_during_a_run_still_writes_the_trajectory(tmp_path):
-    d = ensure_sequence("two_wall_short")
+    d = sequence("two_wall_short")
     traj = tmp_path / "traj.txt"
     proc = subprocess.Popen([sys.executable, "-m", "ptam", "run", "--dataset", str(d), "--mode", "sync",
                              "--no-viewer", "--trajectory", str(traj), "--map", str(tmp_path / "map.npz")],

@@ -15,17 +15,17 @@ from ptam.capture import open_dataset
 from ptam.capture.keys import TerminalKeys
 from ptam.commands.run_progress import CLEAR_LINE, Display
 from ptam.config import load_config
-from ptam.synthetic import ensure_sequence
-from ptam.system import INITIALISING, TRACKING, System
+from ptam.system import INITIALISING, System
 from ptam.viz.viewer import Viewer
+from tests.support import capture, sequence
 
 FIRST, SECOND = 5, 45
 
 
 def test_space_presses_take_the_two_stereo_keyframes_and_reset_starts_over(tmp_path):
-    d = ensure_sequence("two_wall_short")
+    d = sequence("two_wall_short")
     camera = load_camera(d / "camera.yaml")
-    with open_dataset(d) as src:
+    with open_dataset(d, capture().default_fps) as src:
         frames = [f for f, _ in zip(src, range(SECOND + 3))]
     cfg = load_config()
     system = System(camera, cfg, mode="sync", init_mode="key")
@@ -41,12 +41,12 @@ def test_space_presses_take_the_two_stereo_keyframes_and_reset_starts_over(tmp_p
     # Nothing happens before the first press; the map is built exactly at the second (auto mode would have
     # taken its second keyframe on disparity alone, at frame ~40 after starting at frame 0).
     assert not system.init_started and system.mapper.initialised
-    assert states[:SECOND] == [INITIALISING] * SECOND and states[SECOND:] == [TRACKING] * 3
+    assert states[:SECOND] == [INITIALISING] * SECOND and [s.is_tracking for s in states[SECOND:]] == [True] * 3
     snap = system.mapper.snapshot
     assert [kf.timestamp for kf in snap.keyframes] == [frames[FIRST].timestamp, frames[SECOND].timestamp]
     assert len(system.trajectory) == SECOND - FIRST + 3  # both keyframes, the frames between, and three after
     system.request_keyframe()  # ignored once a map exists
-    assert system.process(frames[-1]).state == TRACKING and system.mapper.snapshot.n_keyframes == 2
+    assert system.process(frames[-1]).state.is_tracking and system.mapper.snapshot.n_keyframes == 2
 
     system.reset()
     assert system.state == INITIALISING and not system.mapper.initialised and system.trajectory == []

@@ -2,8 +2,8 @@
 
 import re
 
+from ptam.bench.ar_timing import run_ar_benchmark
 from ptam.config import load_config
-from ptam.eval.bench_ar import run_ar_benchmark
 
 
 def test_bench_ar_reports_every_scene_and_the_summary_line():

@@ -6,9 +6,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from ptam.ar.ar_plane import ArPlane
 from ptam.ar.eyes import Eyes
 from ptam.ar.game import TargetGame
-from ptam.ar.plane import ArPlane
 from ptam.ar.scenes import make_scene
 from ptam.config import load_config
 from ptam.errors import InputError

@@ -9,8 +9,8 @@ from ptam.camera import FovCamera, load_camera
 from ptam.capture import open_dataset
 from ptam.config import load_config
 from ptam.errors import InputError
-from ptam.synthetic import ensure_sequence
 from ptam.system import System
+from tests.support import capture, sequence
 
 
 def _read_all(path):
@@ -27,12 +27,12 @@ def _read_all(path):
 
 
 def test_sync_run_writes_one_augmented_frame_per_tracked_frame(tmp_path):
-    d = ensure_sequence("two_wall_short")
+    d = sequence("two_wall_short")
     cfg = load_config()
     camera = load_camera(d / "camera.yaml")
     tracked, images = [], {}
     video = tmp_path / "ar.avi"
-    with open_dataset(d) as src, System(camera, cfg, mode="sync") as system:
+    with open_dataset(d, capture().default_fps) as src, System(camera, cfg, mode="sync") as system:
         layer = attach(system, "game", video, fps=src.fps)
         system.observers.append(lambda out, s: tracked.append(out.index) if out.T_cw is not None else None)
         for frame in src:

@@ -8,11 +8,11 @@ import pytest
 
 from ptam.config import default_config
 from ptam.errors import InputError
-from ptam.eval.bench_ba import synthetic_workspace_problem
 from ptam.geometry import so3
 from ptam.geometry.sim3 import umeyama
 from ptam.map.snapshot import camera_centres
 from ptam.mapping.bundle import Bundle
+from tests.support.ba_problems import synthetic_workspace_problem
 
 CFG = default_config().bundle
 

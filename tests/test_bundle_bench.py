@@ -2,8 +2,8 @@
 
 import re
 
+from ptam.bench import ba_timing as bench_ba
 from ptam.config import default_config
-from ptam.eval import bench_ba
 
 
 def test_bench_reports_buckets_and_summary_line(monkeypatch):

@@ -5,10 +5,10 @@ import time
 
 import numpy as np
 
+from ptam.camera.camproj_kernels import project_points_jac
 from ptam.config import default_config
-from ptam.eval.bench_ba import synthetic_workspace_problem
-from ptam.kernels.camproj import project_points_jac
 from ptam.mapping.bundle import Bundle
+from tests.support.ba_problems import synthetic_workspace_problem
 
 ROUNDS = 4
 

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
+from ptam.bench.ba_timing import new_keyframe_start, synthetic_ba_problem
 from ptam.config import default_config
-from ptam.eval.bench_ba import new_keyframe_start, synthetic_ba_problem
 from ptam.geometry import so3
 from ptam.map.snapshot import camera_centres
 from ptam.mapping.bundle import Bundle

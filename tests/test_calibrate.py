@@ -8,7 +8,7 @@ import pytest
 import yaml
 
 from ptam.camera import FovCamera, PinholeCamera, load_camera
-from ptam.camera.calibrate import calibrate, jacobian, project_views
+from ptam.camera.calibrator import calibrate, jacobian, project_views
 from ptam.camera.chessboard import Board, View, ViewCollector, missing_cells, parse_board, select_views
 from ptam.cli import main as cli_main
 from ptam.config import default_config

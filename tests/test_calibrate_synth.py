@@ -5,7 +5,7 @@ import numpy as np
 from ptam.camera import FovCamera, RadTanCamera
 from ptam.camera.chessboard import Board, cell_counts
 from ptam.config import default_config
-from ptam.synthetic.calibration import BoardRenderer, PrintedBoard, board_fits, board_poses, true_corners
+from ptam.synthetic.board_sequence import BoardRenderer, PrintedBoard, board_fits, board_poses, true_corners
 
 CFG = default_config().synth_calibration
 BOARD = PrintedBoard(Board(9, 6, 0.04), 1.0)

@@ -17,6 +17,7 @@ from ptam.capture import (
 from ptam.capture.dataset import dataset_kind
 from ptam.config import default_config
 from ptam.errors import InputError
+from tests.support import capture
 
 W, H = 64, 48
 
@@ -44,7 +45,7 @@ def video(tmp_path_factory):
 
 def test_video_frames_timestamps_and_pixels(video):
     path, frames = video
-    with open_source(video=str(path)) as src:
+    with open_source(capture(), video=str(path)) as src:
         assert len(src) == 10 and src.length == 10
         assert src.size == (W, H)
         assert src.fps == pytest.approx(25.0)
@@ -68,20 +69,20 @@ def test_truncated_and_corrupt_videos(video, tmp_path):
     data = path.read_bytes()
     half = tmp_path / "half.avi"
     half.write_bytes(data[: len(data) // 2])
-    src = open_source(video=str(half))
+    src = open_source(capture(), video=str(half))
     with pytest.raises(InputError, match=r"ended after \d of 10 frames"):
         list(src)
     src.close()
     header = tmp_path / "header.avi"
     header.write_bytes(data[:200])
     with pytest.raises(InputError, match="cannot open video"):
-        open_source(video=str(header))
+        open_source(capture(), video=str(header))
     noise = tmp_path / "noise.avi"
     noise.write_bytes(np.random.default_rng(1).integers(0, 256, 5000, dtype=np.uint8).tobytes())
     with pytest.raises(InputError, match="cannot open video"):
-        open_source(video=str(noise))
+        open_source(capture(), video=str(noise))
     with pytest.raises(InputError, match="video file not found"):
-        open_source(video=str(tmp_path / "missing.avi"))
+        open_source(capture(), video=str(tmp_path / "missing.avi"))
 
 
 def test_image_folder_natural_order(tmp_path):
@@ -89,7 +90,7 @@ def test_image_folder_natural_order(tmp_path):
     for i, f in enumerate(frames):
         cv2.imwrite(str(tmp_path / f"img{i}.png"), f)
     (tmp_path / "notes.txt").write_text("not an image")
-    src = open_source(dataset=str(tmp_path), fps=20.0)
+    src = open_source(capture(), dataset=str(tmp_path), fps=20.0)
     assert dataset_kind(str(tmp_path)) == "folder"
     assert len(src) == 12 and src.size == (W, H) and src.fps == 20.0
     got = list(src)
@@ -103,7 +104,7 @@ def test_image_folder_grey_default_fps_and_errors(tmp_path):
     grey = np.arange(W * H, dtype=np.uint32).reshape(H, W).astype(np.uint8)
     cv2.imwrite(str(tmp_path / "a.pgm"), grey)
     cv2.imwrite(str(tmp_path / "b.pgm"), 255 - grey)
-    src = open_dataset(str(tmp_path))
+    src = open_dataset(str(tmp_path), capture().default_fps)
     assert src.fps == default_config().capture.default_fps
     a, b = list(src)
     assert a.colour is None
@@ -112,17 +113,17 @@ def test_image_folder_grey_default_fps_and_errors(tmp_path):
 
     cv2.imwrite(str(tmp_path / "c.pgm"), np.zeros((H + 2, W), np.uint8))
     with pytest.raises(InputError, match=r"c.pgm is 64x50, expected 64x48"):
-        list(open_dataset(str(tmp_path)))
+        list(open_dataset(str(tmp_path), capture().default_fps))
     (tmp_path / "c.pgm").write_bytes(b"garbage")
     with pytest.raises(InputError, match=r"cannot read image .*c.pgm"):
-        list(open_dataset(str(tmp_path)))
+        list(open_dataset(str(tmp_path), capture().default_fps))
 
     empty = tmp_path / "empty"
     empty.mkdir()
     with pytest.raises(InputError, match="no images"):
         open_folder(str(empty), 30.0)
     with pytest.raises(InputError, match="dataset directory not found"):
-        open_source(dataset=str(tmp_path / "nope"))
+        open_source(capture(), dataset=str(tmp_path / "nope"))
 
 
 def write_tum(root, frames, stamps):
@@ -142,7 +143,7 @@ def test_tum_dataset(tmp_path):
     (tmp_path / "camera.yaml").write_text("model: pinhole\n")
     assert dataset_kind(str(tmp_path)) == "tum"
     assert find_calibration(str(tmp_path)) == os.path.join(str(tmp_path), "camera.yaml")
-    src = open_source(dataset=str(tmp_path))
+    src = open_source(capture(), dataset=str(tmp_path))
     assert len(src) == 5 and src.size == (W, H)
     assert src.fps == pytest.approx(1 / 0.033, rel=1e-6)
     got = list(src)
@@ -156,16 +157,16 @@ def test_tum_corrupt_and_missing(tmp_path):
     text = (tmp_path / "rgb.txt").read_text()
     (tmp_path / "rgb.txt").write_text(text + "3.0\n")
     with pytest.raises(InputError, match=r"rgb.txt:5: expected 'timestamp path'"):
-        open_dataset(str(tmp_path))
+        open_dataset(str(tmp_path), capture().default_fps)
     (tmp_path / "rgb.txt").write_text(text + "abc rgb/x.png\n")
     with pytest.raises(InputError, match=r"rgb.txt:5:"):
-        open_dataset(str(tmp_path))
+        open_dataset(str(tmp_path), capture().default_fps)
     (tmp_path / "rgb.txt").write_text(text + "3.0 rgb/missing.png\n")
     with pytest.raises(InputError, match=r"image file not found: .*missing.png"):
-        open_dataset(str(tmp_path))
+        open_dataset(str(tmp_path), capture().default_fps)
     (tmp_path / "rgb.txt").write_text("# only comments\n")
     with pytest.raises(InputError, match="lists no images"):
-        open_dataset(str(tmp_path))
+        open_dataset(str(tmp_path), capture().default_fps)
     assert find_calibration(str(tmp_path)) is None
 
 
@@ -182,7 +183,7 @@ def test_euroc_dataset_from_root_mav0_or_cam0(tmp_path):
     (cam0 / "data.csv").write_text("\n".join(rows) + "\n")
     for d in (tmp_path, tmp_path / "mav0", cam0):
         assert dataset_kind(str(d)) == "euroc"
-        src = open_dataset(str(d))
+        src = open_dataset(str(d), capture().default_fps)
         assert len(src) == 4 and src.fps == pytest.approx(20.0)
         got = list(src)
         assert got[0].timestamp == pytest.approx(1403636579.763555584, abs=1e-6)
@@ -192,7 +193,7 @@ def test_euroc_dataset_from_root_mav0_or_cam0(tmp_path):
             np.testing.assert_array_equal(f.image, ref)
     (cam0 / "data.csv").write_text("\n".join(rows) + "\n12x,a.png\n")
     with pytest.raises(InputError, match=r"data.csv:6: expected 'timestamp_ns,filename'"):
-        open_dataset(str(tmp_path))
+        open_dataset(str(tmp_path), capture().default_fps)
 
 
 def test_parse_size_and_source_choice():
@@ -201,9 +202,9 @@ def test_parse_size_and_source_choice():
     with pytest.raises(InputError, match="WIDTHxHEIGHT"):
         parse_size("640by480")
     with pytest.raises(InputError, match="exactly one frame source"):
-        open_source()
+        open_source(capture())
     with pytest.raises(InputError, match="exactly one frame source"):
-        open_source(video="a.avi", dataset="b")
+        open_source(capture(), video="a.avi", dataset="b")
 
 
 class ClocklessCapture:
@@ -232,7 +233,7 @@ def test_video_without_container_clock_falls_back_to_index_over_fps(tmp_path, mo
 
     monkeypatch.setattr(video_module.cv2, "VideoCapture", ClocklessCapture)
     (tmp_path / "v.avi").write_bytes(b"stub")
-    src = open_source(video=str(tmp_path / "v.avi"))
+    src = open_source(capture(), video=str(tmp_path / "v.avi"))
     fps = default_config().capture.default_fps
     assert src.fps == fps and len(src) == 4
     np.testing.assert_allclose([f.timestamp for f in src], np.arange(4) / fps, atol=1e-12)

@@ -9,6 +9,7 @@ from ptam.capture import open_source
 from ptam.capture import v4l2 as v4l2_module
 from ptam.capture.v4l2 import parse_camera
 from ptam.errors import InputError
+from tests.support import capture
 
 
 def test_parse_camera():
@@ -23,7 +24,7 @@ def test_parse_camera():
 
 def test_missing_camera_cannot_be_opened():
     with pytest.raises(InputError, match=r"^cannot open camera v4l2:/dev/video99$"):
-        open_source(camera="v4l2:/dev/video99")
+        open_source(capture(), camera="v4l2:/dev/video99")
 
 
 class FakeCapture:
@@ -60,7 +61,7 @@ class FakeCapture:
 
 def test_camera_requests_mode_and_reports_stop(monkeypatch):
     monkeypatch.setattr(v4l2_module.cv2, "VideoCapture", FakeCapture)
-    src = open_source(camera="v4l2:2", size="640x480", fps=30.0)
+    src = open_source(capture(), camera="v4l2:2", size="640x480", fps=30.0)
     cap = src._cap
     assert cap.device == 2 and cap.api == cv2.CAP_V4L2
     assert cap.requested == {cv2.CAP_PROP_FRAME_WIDTH: 640, cv2.CAP_PROP_FRAME_HEIGHT: 480, cv2.CAP_PROP_FPS: 30.0}

@@ -2,9 +2,9 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
+from ptam.bench.gt_map import build_gt_map
 from ptam.config import default_config
 from ptam.errors import InputError
-from ptam.eval.gt_map import build_gt_map
 from ptam.geometry import se3
 from ptam.image.pyramid import level_to_zero, zero_to_level
 from ptam.synthetic import load_scene

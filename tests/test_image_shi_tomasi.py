@@ -4,7 +4,8 @@ import numpy as np
 from ptam.config import default_config
 from ptam.image.fast import fast_corners
 from ptam.image.shi_tomasi import candidates, shi_tomasi
-from ptam.kernels.shi_tomasi import shi_tomasi_ref, shi_tomasi_scores
+from ptam.image.shi_tomasi_kernels import shi_tomasi_scores
+from tests.reference.shi_tomasi import shi_tomasi_ref
 
 
 def test_kernel_matches_reference_on_random_inputs():

@@ -5,9 +5,10 @@ import pytest
 
 from ptam.camera import FovCamera, PinholeCamera, RadTanCamera
 from ptam.geometry import se3
-from ptam.kernels import ba_kernels as K
-from ptam.kernels import ba_solve
+from ptam.mapping import bundle_kernels as K
+from ptam.mapping import bundle_solve_kernels as ba_solve
 from ptam.mapping.bundle_structure import ReducedSolver, build_structure
+from tests.reference import bundle as R
 
 CAMERAS = {
     "fov": FovCamera(640, 480, 384.0, 384.0, 319.5, 239.5, 0.9),
@@ -67,13 +68,13 @@ def test_residuals_and_cost(problem):
     n = len(st.sel)
     err, e2, bad = np.empty((n, 2)), np.empty(n), np.empty(n, bool)
     K.ba_residuals(cam.kernel_params(), P, X, st.mcam, st.mpt, uv, inv_sigma, use, err, e2, bad)
-    r_err, r_e2, r_bad = K.ba_residuals_ref(cam, P, X, st.mcam, st.mpt, uv, inv_sigma, use)
+    r_err, r_e2, r_bad = R.ba_residuals_ref(cam, P, X, st.mcam, st.mpt, uv, inv_sigma, use)
     assert np.array_equal(bad, r_bad) and bad.sum() > 0
     assert close(err, r_err) and close(e2, r_e2)
     for min_c in (0.4, 50.0):
         c2 = K.tukey_cutoff_sq(e2, use, bad, min_c)
-        assert close(c2, K.tukey_cutoff_sq_ref(e2, use, bad, min_c))
-        assert close(K.ba_robust_cost(e2, bad, use, c2), K.ba_robust_cost_ref(e2, bad, use, c2))
+        assert close(c2, R.tukey_cutoff_sq_ref(e2, use, bad, min_c))
+        assert close(K.ba_robust_cost(e2, bad, use, c2), R.ba_robust_cost_ref(e2, bad, use, c2))
     assert K.tukey_cutoff_sq(e2, np.zeros(n, bool), bad, 0.4) == pytest.approx(0.16)
 
 
@@ -93,7 +94,7 @@ def linearised(problem):
 def test_linearise_blocks(problem):
     cam, P, X, uv, inv_sigma, use, st = problem
     c2, (U, ea, V, eb, W, live, cost) = linearised(problem)
-    rU, rea, rV, reb, rW, rlive, rcost = K.ba_linearise_ref(cam, P, X, st.mcam, st.mpt, uv, inv_sigma, use, c2,
+    rU, rea, rV, reb, rW, rlive, rcost = R.ba_linearise_ref(cam, P, X, st.mcam, st.mpt, uv, inv_sigma, use, c2,
                                                             st.cam_row, len(st.pts))
     assert np.array_equal(live, rlive) and 0 < live.sum() < use.sum()
     assert close(cost, rcost)
@@ -112,7 +113,7 @@ def test_schur_backsub_and_solvers(problem):
     blocks, rhs, Vinv = np.empty((len(st.pair_rows), 6, 6)), np.empty(6 * nf), np.empty_like(V)
     K.ba_schur(U, ea, V, eb, W, live, lam, st.mrow, st.pt_start, st.order, st.pair_id, blocks, rhs, Vinv)
     S = assemble(blocks, st.pair_rows, st.pair_cols, nf)
-    rS, rrhs, rVinv = K.ba_schur_ref(U, ea, V, eb, W, live, lam, st.mrow, st.mpt)
+    rS, rrhs, rVinv = R.ba_schur_ref(U, ea, V, eb, W, live, lam, st.mrow, st.mpt)
     assert close(S, rS) and close(rhs, rrhs) and close(Vinv, rVinv)
     assert not Vinv[0].any()
 
@@ -121,7 +122,7 @@ def test_schur_backsub_and_solvers(problem):
     assert close(ReducedSolver(st, dense=False).solve(blocks, rhs), x, 1e-8)
 
     dp = K.ba_backsub(Vinv, eb, W, live, st.mrow, st.pt_start, st.order, x)
-    assert close(dp, K.ba_backsub_ref(Vinv, eb, W, live, st.mrow, st.mpt, x))
+    assert close(dp, R.ba_backsub_ref(Vinv, eb, W, live, st.mrow, st.mpt, x))
 
 
 def test_envelope_cholesky_on_a_banded_system():
@@ -150,7 +151,7 @@ def test_envelope_cholesky_on_a_banded_system():
 
 def test_pair_script(problem):
     st = problem[-1]
-    ref = K.ba_pair_script_ref(st.pt_start, st.order, st.mrow)
+    ref = R.ba_pair_script_ref(st.pt_start, st.order, st.mrow)
     pair_id, rows, cols = K.ba_pair_script(st.pt_start, st.order, st.mrow, st.n_free)
     assert len(ref) > 100 and np.array_equal(np.c_[rows[pair_id], cols[pair_id]], ref)
     assert len(np.unique(rows * st.n_free + cols)) == len(rows) == len(np.unique(ref[:, 0] * st.n_free + ref[:, 1]))

@@ -3,9 +3,8 @@
 import numpy as np
 import pytest
 
-from ptam.kernels.camproj import project_points, project_points_jac
-
-from .test_camera import CAMERAS
+from ptam.camera.camproj_kernels import project_points, project_points_jac
+from tests.support.cameras import CAMERAS
 
 
 @pytest.mark.parametrize("name", list(CAMERAS))

@@ -3,7 +3,8 @@
 import numpy as np
 
 from ptam.image.pyramid import row_lut
-from ptam.kernels.epipolar import epipolar_search, epipolar_search_ref
+from ptam.mapping.epipolar_kernels import epipolar_search
+from tests.reference.epipolar import epipolar_search_ref
 
 
 def test_kernel_matches_reference():

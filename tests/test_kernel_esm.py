@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
-from ptam.kernels.esm import esm_se2, esm_se2_ref
-from ptam.tracking.sbi import gradient
+from ptam.image.esm_kernels import esm_se2
+from ptam.image.sbi import gradient
+from tests.reference.esm import esm_se2_ref
 
 H, W = 30, 40
 CX, CY = 0.5 * (W - 1), 0.5 * (H - 1)

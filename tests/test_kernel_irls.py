@@ -4,17 +4,9 @@ import numpy as np
 import pytest
 
 from ptam.geometry import se3
-from ptam.kernels.irls import (
-    normal_equations,
-    normal_equations_ref,
-    pose_irls,
-    pose_irls_ref,
-    se3_exp,
-    tukey_sigma_sq,
-    tukey_sigma_sq_ref,
-)
-
-from .test_camera import CAMERAS
+from ptam.tracking.pose_kernels import normal_equations, pose_irls, se3_exp, tukey_sigma_sq
+from tests.reference.pose import normal_equations_ref, pose_irls_ref, tukey_sigma_sq_ref
+from tests.support.cameras import CAMERAS
 
 
 def test_parts_match_reference():

@@ -4,7 +4,8 @@ import numpy as np
 
 from ptam.image.fast import fast_corners
 from ptam.image.pyramid import row_lut
-from ptam.kernels.minipatch import minipatch_find, minipatch_find_ref
+from ptam.tracking.minipatch_kernels import minipatch_find
+from tests.reference.minipatch import minipatch_find_ref
 
 
 def _texture(rng, h=120, w=160):

@@ -4,9 +4,12 @@ import cv2
 import numpy as np
 
 from ptam.image.pyramid import row_lut
-from ptam.kernels.patch_search import search_patches, search_patches_ref
-from ptam.kernels.patch_subpix import refine_subpix, refine_subpix_ref
-from ptam.kernels.patch_template import make_templates, make_templates_ref
+from ptam.patch.search_kernels import search_patches
+from ptam.patch.subpix_kernels import refine_subpix
+from ptam.patch.template_kernels import make_templates
+from tests.reference.search import search_patches_ref
+from tests.reference.subpix import refine_subpix_ref
+from tests.reference.template import make_templates_ref
 
 SIZE = 8
 

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from ptam.geometry import se3
-from ptam.kernels.projection import project_map_points, project_map_points_ref
-
-from .test_camera import CAMERAS
+from ptam.tracking.projection_kernels import project_map_points
+from tests.reference.projection import project_map_points_ref
+from tests.support.cameras import CAMERAS
 
 
 @pytest.mark.parametrize("name", list(CAMERAS))

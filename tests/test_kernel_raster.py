@@ -6,10 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
-from ptam.ar.renderer import camera_ray_table
-from ptam.camera import FovCamera
-from ptam.geometry import so3
-from ptam.kernels.raster import (
+from ptam.ar.overlay import camera_ray_table
+from ptam.ar.raster_kernels import (
     BALL,
     DECAL_LEN,
     EYE,
@@ -17,12 +15,12 @@ from ptam.kernels.raster import (
     SPHERE_LEN,
     blend_coverage,
     draw_decals,
-    draw_decals_ref,
     draw_spheres,
-    draw_spheres_ref,
     rasterise_polylines,
-    rasterise_polylines_ref,
 )
+from ptam.camera import FovCamera
+from ptam.geometry import so3
+from tests.reference.raster import draw_decals_ref, draw_spheres_ref, rasterise_polylines_ref
 
 CAM = FovCamera(640, 480, 384.0, 384.0, 319.5, 239.5, 0.9)  # PTAM's wide-angle lens (two_wall's camera)
 SHADING = np.array([0.5, 0.5, 1.0, 50.0])

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from ptam.geometry import se3
-from ptam.kernels.warp import RULE_CLOSEST, RULE_PTAM_CODE, warp_matrices, warp_matrices_ref
-
-from .test_camera import CAMERAS
+from ptam.patch.warp_kernels import RULE_CLOSEST, RULE_PTAM_CODE, warp_matrices
+from tests.reference.warp import warp_matrices_ref
+from tests.support.cameras import CAMERAS
 
 
 def _points(rng, n):

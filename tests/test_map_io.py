@@ -11,8 +11,8 @@ from ptam.cli import main as cli_main
 from ptam.config import load_config
 from ptam.errors import InputError
 from ptam.eval import associate, ate, read_tum
-from ptam.map.io import VERSION, load_map, save_map
-from ptam.synthetic import ensure_sequence
+from ptam.map.map_file import VERSION, load_map, save_map
+from tests.support import sequence
 
 COLUMNS = ("X", "normal", "source_kf", "source_level", "source_xy", "bad", "meas_kf", "meas_pt", "meas_xy",
            "meas_level", "meas_source", "kf_T_cw", "good_point_indices")
@@ -24,7 +24,7 @@ def _rows(path):
 
 @pytest.fixture(scope="module")
 def saved(tmp_path_factory):
-    d = ensure_sequence("two_wall_short")
+    d = sequence("two_wall_short")
     out = tmp_path_factory.mktemp("map")
     code = cli_main(["run", "--dataset", str(d), "--mode", "sync", "--no-viewer", "--map", str(out / "map.npz"),
                      "--keyframes", str(out / "kf.txt")])

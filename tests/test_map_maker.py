@@ -2,8 +2,8 @@
 
 import numpy as np
 
+from ptam.bench.gt_map import build_gt_map
 from ptam.config import load_config
-from ptam.eval.gt_map import build_gt_map
 from ptam.mapping.map_maker import MapMaker
 from ptam.synthetic import load_scene
 

@@ -3,10 +3,11 @@
 import numpy as np
 
 from ptam.camera import FovCamera
-from ptam.kernels.render import intersect_ref, render, render_ref
 from ptam.synthetic.rectangle import rectangle_from_spec
 from ptam.synthetic.render import Renderer
+from ptam.synthetic.render_kernels import intersect_rays, render
 from ptam.synthetic.trajectory import look_at
+from tests.reference.render import render_ref
 
 
 def _random_scene(rng, n_rects=4):
@@ -49,6 +50,6 @@ def test_intersect_ref_nearest_hit():
     spec = {"axes": [[1, 0, 0], [0, 1, 0]], "size": [1, 1], "texture": {"type": "constant", "value": 0}}
     rects = np.stack([rectangle_from_spec({**spec, "center": [0, 0, z]}, "r").packed() for z in (5.0, 2.0)])
     o = np.array([[0.2, 0.1, 0.0], [0.2, 0.1, 3.0], [0.7, 0.0, 0.0]])
-    t, k, a, b = intersect_ref(o, np.tile([0.0, 0.0, 1.0], (3, 1)), rects)
+    t, k, a, b = intersect_rays(o, np.tile([0.0, 0.0, 1.0], (3, 1)), rects)
     assert np.allclose(t[:2], [2.0, 2.0]) and k.tolist() == [1, 0, -1] and np.isinf(t[2])
     assert np.allclose([a[0], b[0]], [0.7, 0.6])  # from corner (-0.5, -0.5)

@@ -1,5 +1,7 @@
 """Rendered sequences on disk: TUM layout, cache behaviour, lossless video, and ``ptam synth``."""
 
+import dataclasses
+
 import cv2
 import numpy as np
 import pytest
@@ -7,9 +9,10 @@ import pytest
 import ptam.synthetic.sequence as sequence
 from ptam.camera import load_camera
 from ptam.cli import main as cli_main
-from ptam.eval.trajectory import read_tum
+from ptam.eval.tum_io import read_tum
 from ptam.synthetic import ensure_sequence, load_scene
 from ptam.synthetic.scene import Scene
+from tests.support import config
 
 TINY = """\
 camera: {model: fov, width: 80, height: 60, fx: 48.0, fy: 48.0, cx: 39.5, cy: 29.5, omega: 0.9}
@@ -36,12 +39,16 @@ def tiny(tmp_path, monkeypatch):
     return path
 
 
+def _synth(cache_dir):
+    return dataclasses.replace(config().synthetic, cache_dir=str(cache_dir))
+
+
 def _frames(d, n):
     return [cv2.imread(str(d / f"rgb/{i:06d}.png"), cv2.IMREAD_UNCHANGED) for i in range(n)]
 
 
 def test_sequence_layout_and_contents(tiny, tmp_path):
-    d = ensure_sequence(tiny, cache_dir=tmp_path / "cache", video=True)
+    d = ensure_sequence(tiny, _synth(tmp_path / "cache"), video=True)
     assert d.parent == tmp_path / "cache" / "synthetic"
     scene = load_scene(tiny)
     frames = _frames(d, 6)
@@ -66,7 +73,7 @@ def test_sequence_layout_and_contents(tiny, tmp_path):
 
 def test_cache_hit_does_not_render(tiny, tmp_path, monkeypatch):
     cache = tmp_path / "cache"
-    d = ensure_sequence(tiny, cache_dir=cache)
+    d = ensure_sequence(tiny, _synth(cache))
     assert not (d / "video.avi").exists()
 
     def fail(*a, **k):
@@ -74,12 +81,12 @@ def test_cache_hit_does_not_render(tiny, tmp_path, monkeypatch):
 
     with monkeypatch.context() as m:  # undoes only this patch, not the fixture's removal of PTAM_CACHE_DIR
         m.setattr(Scene, "render_frame", fail)
-        assert ensure_sequence(tiny, cache_dir=cache) == d
-    assert ensure_sequence(tiny, cache_dir=cache, video=True) == d  # the video is added from the PNGs
+        assert ensure_sequence(tiny, _synth(cache)) == d
+    assert ensure_sequence(tiny, _synth(cache), video=True) == d  # the video is added from the PNGs
     cap = cv2.VideoCapture(str(d / "video.avi"))
     assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == 6
     tiny.write_text(TINY.replace("seed: 2", "seed: 3"))  # another scene content, another entry
-    assert ensure_sequence(tiny, cache_dir=cache) != d
+    assert ensure_sequence(tiny, _synth(cache)) != d
 
 
 def test_interrupted_render_leaves_no_cache_entry(tiny, tmp_path, monkeypatch):
@@ -92,13 +99,13 @@ def test_interrupted_render_leaves_no_cache_entry(tiny, tmp_path, monkeypatch):
 
     monkeypatch.setattr(Scene, "render_frame", flaky)
     with pytest.raises(KeyboardInterrupt):
-        ensure_sequence(tiny, cache_dir=tmp_path / "cache")
+        ensure_sequence(tiny, _synth(tmp_path / "cache"))
     assert list((tmp_path / "cache" / "synthetic").iterdir()) == []
 
 
 def test_cache_dir_from_environment(tiny, tmp_path, monkeypatch):
     monkeypatch.setenv(sequence.CACHE_ENV, str(tmp_path / "env"))
-    assert ensure_sequence(tiny, cache_dir=tmp_path / "ignored").parent == tmp_path / "env" / "synthetic"
+    assert ensure_sequence(tiny, _synth(tmp_path / "ignored")).parent == tmp_path / "env" / "synthetic"
 
 
 def test_cli_synth_then_eval_reports_zero_error(tiny, tmp_path, monkeypatch, capsys):

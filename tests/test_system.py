@@ -9,13 +9,13 @@ import pytest
 
 from ptam.config import load_config
 from ptam.eval.score import score_trajectory
-from ptam.synthetic import ensure_sequence
 from ptam.system import run_dataset
+from tests.support import sequence
 
 
 @pytest.fixture(scope="module")
 def short():
-    return ensure_sequence("two_wall_short")
+    return sequence("two_wall_short")
 
 
 def _run(d, mode):

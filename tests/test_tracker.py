@@ -9,11 +9,12 @@ import cv2
 import numpy as np
 import pytest
 
+from ptam.bench.gt_map import build_gt_map
 from ptam.config import default_config
-from ptam.eval.gt_map import build_gt_map
 from ptam.geometry import se3
-from ptam.synthetic import ensure_sequence, load_scene
+from ptam.synthetic import load_scene
 from ptam.tracking.tracker import Tracker
+from tests.support import sequence
 
 N_FRAMES = 100
 CFG = default_config()
@@ -26,7 +27,7 @@ def scene():
 
 @pytest.fixture(scope="module")
 def frames(scene):
-    seq = ensure_sequence("two_wall_short")
+    seq = sequence("two_wall_short")
     return [cv2.imread(str(seq / f"rgb/{i:06d}.png"), cv2.IMREAD_GRAYSCALE) for i in range(N_FRAMES)]
 
 

@@ -12,11 +12,11 @@ from ptam.geometry import se3
 from ptam.image.pyramid import Pyramid
 from ptam.map.keyframe import KeyFrame
 from ptam.map.map import Map
+from ptam.patch.finder import PatchFinder
+from ptam.patch.warp import patch_pixel_vectors, search_warps, template_matrices
 from ptam.tracking.motion_model import MotionModel
-from ptam.tracking.patch_finder import PatchFinder
 from ptam.tracking.quality import TrackingQuality
 from ptam.tracking.tracker import Tracker
-from ptam.tracking.warp import patch_pixel_vectors, search_warps, template_matrices
 
 CFG = default_config()
 CAM = FovCamera(640, 480, 384.0, 384.0, 319.5, 239.5, 0.9)
@@ -121,7 +121,7 @@ def test_tracker_rejects_an_image_of_the_wrong_size():
 
 
 def test_bench_tracking_prints_table_1_and_one_summary_line():
-    from ptam.eval.bench_tracking import run_tracking_benchmark
+    from ptam.bench.tracking_timing import run_tracking_benchmark
 
     lines = []
     res = run_tracking_benchmark(CFG, "two_wall_short", out=lines.append, frames=30)

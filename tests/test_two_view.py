@@ -6,7 +6,7 @@ import pytest
 from ptam.camera import FovCamera
 from ptam.config import load_config
 from ptam.geometry import se3, so3
-from ptam.mapping.plane import fit_dominant_plane, plane_aligner
+from ptam.mapping.dominant_plane import fit_dominant_plane, plane_aligner
 from ptam.mapping.two_view import InitFailure, estimate_two_view
 
 CAM = FovCamera(640, 480, 384.0, 384.0, 319.5, 239.5, 0.9)

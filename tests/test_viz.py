@@ -14,24 +14,24 @@ from rerun.chunk import RrdReader
 from ptam.camera import load_camera
 from ptam.capture import open_dataset
 from ptam.config import load_config
-from ptam.synthetic import ensure_sequence
 from ptam.system import System
-from ptam.viz import scene
+from ptam.viz import map_entities as scene
 from ptam.viz.viewer import Viewer
+from tests.support import capture, sequence
 
 FRAMES = 120
 
 
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory):
-    d = ensure_sequence("two_wall_short")
+    d = sequence("two_wall_short")
     cfg = load_config()
     camera = load_camera(d / "camera.yaml")
     stream = rr.RecordingStream("ptam-test", recording_id=uuid.uuid4())
     memory = stream.memory_recording()
     viewer = Viewer(stream, camera, cfg)
     found = []
-    with open_dataset(d) as src, System(camera, cfg, mode="sync") as system:
+    with open_dataset(d, capture().default_fps) as src, System(camera, cfg, mode="sync") as system:
         system.observers.append(viewer)
         for frame in src:
             out = system.process(frame)
@@ -99,7 +99,7 @@ def test_grid_and_thumbnail_intrinsics():
     assert lines.shape == (42, 2, 3) and axis.sum() == 2
     assert np.all(lines[..., 2] == 0) and np.isclose(np.abs(lines[..., :2]).max(), 1.0)
     np.testing.assert_allclose(lines[axis][:, :, :2].sum(axis=1), 0.0)  # the axis lines pass through the origin
-    camera = load_camera(ensure_sequence("two_wall_short") / "camera.yaml")
+    camera = load_camera(sequence("two_wall_short") / "camera.yaml")
     f, pp, size = scene.level_intrinsics(camera, 2)
     assert size == (camera.width // 4, camera.height // 4)
     assert np.isclose(f[0], camera.fx / 4)

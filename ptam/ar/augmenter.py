@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry import se3
-from .plane import ArPlane
-from .renderer import Renderer
+from .ar_plane import ArPlane
+from .overlay import OverlayRenderer
 from .scenes import make_scene
 
 
@@ -17,7 +17,7 @@ class Augmenter:
     def __init__(self, camera, cfg, scene: str | None = None, T_pw: np.ndarray | None = None):
         self.plane = ArPlane(cfg.init, cfg.ar.plane_refresh_growth, T_pw)
         self.scene = make_scene(scene or cfg.ar.scene, cfg.ar)
-        self.renderer = Renderer(camera, cfg.ar)
+        self.renderer = OverlayRenderer(camera, cfg.ar)
         self._last_timestamp: float | None = None
 
     def augment(self, image: np.ndarray, T_cw: np.ndarray, timestamp: float, snapshot=None) -> np.ndarray:

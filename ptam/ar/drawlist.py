@@ -1,6 +1,6 @@
 """What a scene asks the renderer to draw in one frame, in plane coordinates (the dominant plane is z = 0).
 
-Spheres and decals use the record layouts of ``ptam.kernels.raster`` with positions and rotations in the plane
+Spheres and decals use the record layouts of ``ptam.ar.raster_kernels`` with positions and rotations in the plane
 frame; the renderer moves them to the camera frame. The grid, the cross-hair and the text are drawn by the
 renderer itself.
 """
@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..kernels.raster import (
+from .raster_kernels import (
     D_ALPHA,
     D_COLOUR,
     D_RIN,

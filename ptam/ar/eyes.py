@@ -13,9 +13,9 @@ import math
 import numpy as np
 
 from ..geometry import so3
-from ..kernels.raster import EYE
-from . import style
+from . import materials
 from .drawlist import decal_records, sphere_records
+from .raster_kernels import EYE
 
 
 class Eyes:
@@ -44,7 +44,7 @@ class Eyes:
         self.R = self.R @ so3.exp(w)
 
     def spheres(self) -> np.ndarray:
-        colours = np.array([style.EYE_WHITE, style.EYE_IRIS, style.EYE_PUPIL])
+        colours = np.array([materials.EYE_WHITE, materials.EYE_IRIS, materials.EYE_PUPIL])
         return sphere_records(self.positions, self.radius, self.R, np.broadcast_to(colours, (4, 3, 3)), EYE,
                               math.cos(math.radians(self.cfg.eye_pupil_deg)),
                               math.cos(math.radians(self.cfg.eye_iris_deg)))
@@ -53,4 +53,4 @@ class Eyes:
         c = self.cfg
         r = self.radius
         return decal_records(self.positions[:, :2], 0.0, c.shadow_radius_rel * r, c.shadow_softness_rel * r,
-                             style.SHADOW, c.shadow_alpha)
+                             materials.SHADOW, c.shadow_alpha)

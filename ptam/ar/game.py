@@ -17,9 +17,9 @@ import math
 import numpy as np
 
 from ..geometry import so3
-from ..kernels.raster import BALL, D_ALPHA
-from . import style
+from . import materials
 from .drawlist import decal_records, sphere_records
+from .raster_kernels import BALL, D_ALPHA
 
 
 def ray_sphere_hits(origin: np.ndarray, direction: np.ndarray, centres: np.ndarray, radius: float) -> np.ndarray:
@@ -117,26 +117,26 @@ class TargetGame:
 
     def spheres(self) -> np.ndarray:
         n = len(self.pos)
-        stripes = np.array([style.TARGETS[i % len(style.TARGETS)] for i in range(n)])
-        colours = np.stack([stripes, np.broadcast_to(style.TARGET_STRIPE, (n, 3)),
-                            np.broadcast_to(style.TARGET_CAP, (n, 3))], axis=1)
-        return sphere_records(self.centres, self.radius, self.R, colours, BALL, style.BALL_SECTORS,
-                              math.cos(math.radians(style.BALL_CAP_DEG)),
-                              style.TARGET_SPECULAR)
+        stripes = np.array([materials.TARGETS[i % len(materials.TARGETS)] for i in range(n)])
+        colours = np.stack([stripes, np.broadcast_to(materials.TARGET_STRIPE, (n, 3)),
+                            np.broadcast_to(materials.TARGET_CAP, (n, 3))], axis=1)
+        return sphere_records(self.centres, self.radius, self.R, colours, BALL, materials.BALL_SECTORS,
+                              math.cos(math.radians(materials.BALL_CAP_DEG)),
+                              materials.TARGET_SPECULAR)
 
     def decals(self) -> np.ndarray:
         c = self.cfg
         r = self.radius
-        parts = [decal_records(self.pos, 0.0, c.shadow_radius_rel * r, c.shadow_softness_rel * r, style.SHADOW,
+        parts = [decal_records(self.pos, 0.0, c.shadow_radius_rel * r, c.shadow_softness_rel * r, materials.SHADOW,
                                c.shadow_alpha)]
         if len(self.bursts):
             f = (self.bursts[:, 2] + 1.0) / c.burst_frames
-            ro = r * (1.0 + (style.BURST_GROWTH - 1.0) * f)
-            b = decal_records(self.bursts[:, :2], ro - style.BURST_WIDTH * r, ro, 0.0, style.BURST, 1.0)
+            ro = r * (1.0 + (materials.BURST_GROWTH - 1.0) * f)
+            b = decal_records(self.bursts[:, :2], ro - materials.BURST_WIDTH * r, ro, 0.0, materials.BURST, 1.0)
             b[:, D_ALPHA] = 1.0 - f
             parts.append(b)
         if self.aim is not None:
-            colour = style.AIM_RING_LOCKED if self.aimed >= 0 else style.AIM_RING
-            parts.append(decal_records(self.aim, style.AIM_RING_INNER * c.crosshair_radius, c.crosshair_radius,
-                                       0.0, colour, style.AIM_RING_ALPHA))
+            colour = materials.AIM_RING_LOCKED if self.aimed >= 0 else materials.AIM_RING
+            parts.append(decal_records(self.aim, materials.AIM_RING_INNER * c.crosshair_radius, c.crosshair_radius,
+                                       0.0, colour, materials.AIM_RING_ALPHA))
         return np.concatenate(parts)

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..kernels.camproj import project_points
+from ..camera.camproj_kernels import project_points
 
 
 @dataclass(frozen=True)

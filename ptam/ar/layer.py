@@ -26,9 +26,9 @@ import numpy as np
 
 from ..errors import PtamError
 from ..geometry import se3
-from ..system import INITIALISING
+from ..vocabulary import TrackingState
 from .augmenter import Augmenter
-from .video import open_video_writer
+from .video_writer import open_video_writer
 
 
 def frame_image(frame) -> np.ndarray:
@@ -78,7 +78,7 @@ class ArLayer:
         if frame is None:
             return
         if outcome.T_cw is None:
-            if outcome.state == INITIALISING:
+            if outcome.state == TrackingState.INITIALISING:
                 self._pending.append(frame)
             return
         snapshot = system.mapper.snapshot

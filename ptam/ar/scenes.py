@@ -18,12 +18,13 @@ from ..errors import InputError
 from .drawlist import DrawList
 from .eyes import Eyes
 from .game import TargetGame
+from ..vocabulary import ArScene
 
-SCENES = ("eyes", "game", "grid", "off")
+SCENES = tuple(ArScene)
 
 
 class Scene:
-    name = "off"
+    name = ArScene.OFF
 
     def __init__(self, ar_cfg):
         self.cfg = ar_cfg
@@ -42,14 +43,14 @@ class Scene:
 
 
 class GridScene(Scene):
-    name = "grid"
+    name = ArScene.GRID
 
     def _update(self, T_pc, dt):
         return DrawList(grid_alpha=1.0)
 
 
 class EyesScene(Scene):
-    name = "eyes"
+    name = ArScene.EYES
 
     def __init__(self, ar_cfg):
         super().__init__(ar_cfg)
@@ -63,7 +64,7 @@ class EyesScene(Scene):
 
 
 class GameScene(Scene):
-    name = "game"
+    name = ArScene.GAME
 
     def __init__(self, ar_cfg):
         super().__init__(ar_cfg)
@@ -85,7 +86,7 @@ class GameScene(Scene):
                         text=[f"hits {g.hits}   bites {g.bites}"])
 
 
-_SCENES = {"eyes": EyesScene, "game": GameScene, "grid": GridScene, "off": Scene}
+_SCENES = {ArScene.EYES: EyesScene, ArScene.GAME: GameScene, ArScene.GRID: GridScene, ArScene.OFF: Scene}
 
 
 def make_scene(name: str, ar_cfg) -> Scene:

@@ -1,7 +1,7 @@
 """Camera models (PTAM's FOV/ATAN model, pinhole, OpenCV radtan) and camera.yaml IO."""
 
+from .camera_file import camera_from_dict, load_camera, save_camera
 from .fov import FovCamera
-from .io import camera_from_dict, load_camera, save_camera
 from .model import MODEL_IDS, CameraModel
 from .pinhole import PinholeCamera
 from .radtan import RadTanCamera

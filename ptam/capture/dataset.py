@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 
-from ..config import default_config
 from ..errors import InputError
 from .euroc import find_cam0, open_euroc
 from .folder import open_folder
@@ -25,12 +24,11 @@ def dataset_kind(directory: str) -> str:
     return "folder"
 
 
-def open_dataset(directory: str, fps: float | None = None) -> ImageSequence:
-    """The dataset in ``directory``; ``fps`` (default ``capture.default_fps``) stamps a plain folder and is
-    the fallback rate of a TUM or EuRoC sequence, which carry their own timestamps."""
+def open_dataset(directory: str | os.PathLike, fps: float) -> ImageSequence:
+    """The dataset in ``directory``; ``fps`` (``capture.default_fps`` on the command line) stamps a plain folder
+    and is the fallback rate of a TUM or EuRoC sequence, which carry their own timestamps."""
+    directory = os.fspath(directory)
     kind = dataset_kind(directory)
-    if fps is None:
-        fps = default_config().capture.default_fps
     if kind == "tum":
         return open_tum(directory, fps)
     if kind == "euroc":

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import re
 
-from ..config import CaptureConfig, default_config
+from ..config import CaptureConfig
 from ..errors import InputError
 from .dataset import open_dataset
 from .source import FrameSource
@@ -28,12 +28,10 @@ def parse_size(size: str | tuple[int, int] | list[int]) -> tuple[int, int]:
     return w, h
 
 
-def open_source(camera: str | None = None, video: str | None = None, dataset: str | None = None,
-                fps: float | None = None, size: str | tuple[int, int] | None = None,
-                cfg: CaptureConfig | None = None) -> FrameSource:
+def open_source(cfg: CaptureConfig, camera: str | None = None, video: str | None = None, dataset: str | None = None,
+                fps: float | None = None, size: str | tuple[int, int] | None = None) -> FrameSource:
     """Exactly one of ``camera``, ``video``, ``dataset``. ``fps`` stamps image folders and is requested from
-    cameras; ``size`` is requested from cameras. Defaults come from the ``capture`` config section."""
-    cfg = cfg or default_config().capture
+    cameras; ``size`` is requested from cameras. Defaults come from ``cfg``, the ``capture`` config section."""
     given = [name for name, v in (("camera", camera), ("video", video), ("dataset", dataset)) if v is not None]
     if len(given) != 1:
         raise InputError(f"give exactly one frame source (camera, video or dataset), got {len(given)}")

@@ -1,6 +1,6 @@
 """``ptam bench WHAT``: the papers' timing tables measured on this machine (PTAM Tables 1 and 2, Agility §6–§7).
 
-Each benchmark is a ``run_*_benchmark(cfg, scene)`` in ``ptam.eval``; ``all`` runs PTAM's two tables.
+Each benchmark is a ``run_*_benchmark(cfg, scene)`` in ``ptam.bench``; ``all`` runs PTAM's two tables.
 """
 
 from __future__ import annotations
@@ -8,22 +8,22 @@ from __future__ import annotations
 import importlib
 
 BENCHMARKS = {
-    "tracking": ("bench_tracking", "run_tracking_benchmark"),
-    "mapping": ("bench_mapping", "run_mapping_benchmark"),
-    "agility": ("bench_agility", "run_agility_benchmark"),
-    "ar": ("bench_ar", "run_ar_benchmark"),
+    "tracking": ("tracking_timing", "run_tracking_benchmark"),
+    "mapping": ("system_run", "run_mapping_benchmark"),
+    "agility": ("agility_timing", "run_agility_benchmark"),
+    "ar": ("ar_timing", "run_ar_benchmark"),
 }
 ALL = ("tracking", "mapping")
 
 
 def _run(name: str, cfg, scene: str) -> None:
     module, func = BENCHMARKS[name]
-    getattr(importlib.import_module(f"ptam.eval.{module}"), func)(cfg, scene)
+    getattr(importlib.import_module(f"ptam.bench.{module}"), func)(cfg, scene)
 
 
 def main(args, cfg) -> int:
     if args.what == "ba":  # synthetic PTAM-shaped maps, no scene
-        from ..eval.bench_ba import run_ba_benchmark
+        from ..bench.ba_timing import run_ba_benchmark
 
         run_ba_benchmark(cfg)
     elif args.what == "all":

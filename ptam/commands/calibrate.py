@@ -10,7 +10,7 @@ import numpy as np
 from tqdm import tqdm
 
 from ..camera import save_camera
-from ..camera.calibrate import CalibrationResult, calibrate
+from ..camera.calibrator import CalibrationResult, calibrate
 from ..camera.chessboard import ViewCollector, missing_cells, parse_board, select_views
 from ..capture import open_source
 from ..errors import InputError
@@ -19,7 +19,7 @@ from ..errors import InputError
 def _open(args, cfg):
     if args.camera is None and args.video is None and args.images is None:
         raise InputError("ptam calibrate: give --video FILE, --camera v4l2[:DEVICE] or --images DIR")
-    return open_source(camera=args.camera, video=args.video, dataset=args.images, cfg=cfg.capture)
+    return open_source(cfg.capture, camera=args.camera, video=args.video, dataset=args.images)
 
 
 def _collect(source, collector: ViewCollector, step: int) -> int:

@@ -29,9 +29,9 @@ from ..errors import InputError, PtamError
 from ..eval import write_tum
 from ..eval.score import score_trajectory
 from ..image.pyramid import Pyramid
-from ..map.io import load_map, save_map
+from ..map.map_file import load_map, save_map
 from ..system import System
-from ..viz.state import INITIALISING, state_of
+from ..vocabulary import ArScene, InitMode, RunMode, TrackingState
 from .run_progress import Display
 from .run_summary import print_summary
 
@@ -74,9 +74,9 @@ def _open(args, cfg, map_camera):
 
         print(f"ptam: no source given: replaying the embedded synthetic scene '{DEFAULT_SCENE}' "
               f"(rendered once, cached)", file=sys.stderr)
-        dataset = str(ensure_sequence(DEFAULT_SCENE, cfg.synthetic.cache_dir))
-    source = open_source(camera=args.camera, video=args.video, dataset=dataset, fps=args.fps, size=args.size,
-                         cfg=cfg.capture)
+        dataset = str(ensure_sequence(DEFAULT_SCENE, cfg.synthetic))
+    source = open_source(cfg.capture, camera=args.camera, video=args.video, dataset=dataset, fps=args.fps,
+                         size=args.size)
     try:
         calibration = args.calibration or (find_calibration(dataset) if dataset else None)
         if calibration is None and map_camera is None:
@@ -160,8 +160,8 @@ def _status(system: System, outcome, feed):
     """The status line's text for the latest frame."""
     def text(fps: float) -> str:
         snap = system.mapper.snapshot
-        state = state_of(outcome)
-        if state == INITIALISING and system.init_mode == "key":
+        state = str(outcome.state)
+        if outcome.state == TrackingState.INITIALISING and system.init_mode == InitMode.KEY:
             state += (": move the camera sideways, then press space" if system.init_started
                       else ": press space to take the first keyframe")
         kfs, pts = (snap.n_keyframes, snap.n_points) if snap is not None else (0, 0)
@@ -228,7 +228,7 @@ def main(args, cfg) -> int:
 def _main(args, cfg, stop: _StopRequest) -> int:
     logging.basicConfig(level=logging.INFO, format="ptam: %(message)s", stream=sys.stderr)
     live = args.camera is not None
-    mode = args.mode or ("realtime" if live else cfg.system.mode)
+    mode = RunMode(args.mode or (RunMode.REALTIME if live else cfg.system.mode))
     init_frames = _init_frames(getattr(args, "init_frames", None))
     _check_arguments(args)
     loaded = load_map(args.load_map, cfg.image) if args.load_map else None
@@ -250,7 +250,7 @@ def _main(args, cfg, stop: _StopRequest) -> int:
 def _run(args, cfg, source, camera, mode, init_frames, loaded, recording, live, stop) -> tuple[System, int]:
     """Process the source to its end (or q, Ctrl-C, an input error); outputs are written whatever happens."""
     keys = TerminalKeys(sys.stdin if live else None)
-    init_mode = "key" if keys.active and init_frames is None else "auto"
+    init_mode = InitMode.KEY if keys.active and init_frames is None else InitMode.AUTO
     system = System(camera, cfg, mode=mode, init_frames=init_frames, map_=loaded.map if loaded else None,
                     localize_only=args.localize_only, init_mode=init_mode)
     viewer = None
@@ -260,12 +260,12 @@ def _run(args, cfg, source, camera, mode, init_frames, loaded, recording, live, 
         viewer = Viewer(recording.stream, camera, cfg)
         system.observers.append(viewer)
     ar = None
-    if args.ar_video or args.ar not in (None, "off"):  # augmented frames in the AR worker (ptam.ar), off this thread
+    if args.ar_video or args.ar not in (None, ArScene.OFF):  # augmented frames in the AR worker (ptam.ar), off this thread
         from ..ar import attach
 
         ar = attach(system, args.ar, args.ar_video, source.fps)
-    feed = RealtimeFeed(source) if mode == "realtime" else source
-    if init_mode == "key":
+    feed = RealtimeFeed(source) if mode == RunMode.REALTIME else source
+    if init_mode == InitMode.KEY:
         print("ptam: keys: space = stereo-initialisation keyframes (PTAM §6.1), r = reset, q = quit",
               file=sys.stderr)
     interrupted, error = False, None

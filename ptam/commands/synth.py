@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ..errors import InputError
 from ..synthetic import ensure_sequence, list_scenes
-from ..synthetic.calibration import CALIBRATION_SCENE, is_calibration_scene, synth_calibration
+from ..synthetic.board_sequence import CALIBRATION_SCENE, is_calibration_scene, synth_calibration
 from ..synthetic.contact_sheet import contact_sheet
 from ..synthetic.sequence import copy_sequence
 
@@ -18,7 +18,7 @@ def main(args, cfg) -> int:
     if is_calibration_scene(args.scene):
         print(synth_calibration(args.scene, args.out, cfg, video=args.video))
         return 0
-    src = ensure_sequence(args.scene, cache_dir=cfg.synthetic.cache_dir, video=args.video)
+    src = ensure_sequence(args.scene, cfg.synthetic, video=args.video)
     out = copy_sequence(src, args.out, video=args.video)
     print(f"wrote {out} (cached in {src})")
     if args.contact_sheet:

@@ -3,7 +3,7 @@
 from .associate import associate
 from .ate import AteResult, ate
 from .rpe import RpeResult, pairs_by_frames, pairs_by_time, rpe
-from .trajectory import read_tum, write_tum
+from .tum_io import read_tum, write_tum
 
 __all__ = ["read_tum", "write_tum", "associate", "ate", "AteResult", "rpe", "RpeResult", "pairs_by_frames",
            "pairs_by_time"]

@@ -8,7 +8,7 @@ import numpy as np
 
 from .associate import associate
 from .ate import MIN_POSES, ate
-from .trajectory import read_tum
+from .tum_io import read_tum
 
 
 @dataclass(frozen=True)

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernels.shi_tomasi import shi_tomasi_scores
 from .fast import fast_corners
+from .shi_tomasi_kernels import shi_tomasi_scores
 
 
 def shi_tomasi(img: np.ndarray, xy: np.ndarray, half_box: int) -> np.ndarray:

@@ -34,7 +34,7 @@ from ..camera.model import CameraModel
 from ..config import BundleConfig
 from ..errors import InputError
 from ..geometry import se3
-from ..kernels.ba_kernels import ba_backsub, ba_linearise, ba_residuals, ba_robust_cost, ba_schur, tukey_cutoff_sq
+from .bundle_kernels import ba_backsub, ba_linearise, ba_residuals, ba_robust_cost, ba_schur, tukey_cutoff_sq
 from .bundle_structure import BundleStructure, ReducedSolver, build_structure
 
 AbortFlag = threading.Event | Callable[[], bool] | None

@@ -15,8 +15,8 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from ..errors import InputError
-from ..kernels.ba_kernels import ba_pair_script
-from ..kernels.ba_solve import ba_envelope, ba_envelope_solve
+from .bundle_kernels import ba_pair_script
+from .bundle_solve_kernels import ba_envelope, ba_envelope_solve
 
 
 @dataclass(frozen=True)

@@ -17,9 +17,9 @@ import numpy as np
 from ..geometry import se3
 from ..geometry.triangulation import triangulate_two_view
 from ..image.pyramid import level_to_zero, zero_to_level
-from ..kernels.epipolar import epipolar_search
-from ..kernels.patch_subpix import refine_subpix
-from ..kernels.patch_template import make_templates
+from ..patch.subpix_kernels import refine_subpix
+from ..patch.template_kernels import make_templates
+from .epipolar_kernels import epipolar_search
 
 
 @dataclass(frozen=True)

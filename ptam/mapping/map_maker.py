@@ -22,7 +22,7 @@ from ..image.shi_tomasi import candidates
 from ..map.keyframe import KeyFrame
 from ..map.map import SRC_EPIPOLAR, SRC_REFIND, SRC_ROOT, SRC_TRACKER, Map
 from ..map.snapshot import MapSnapshot
-from ..tracking.patch_finder import PatchFinder
+from ..patch.finder import PatchFinder
 from .bundle import Bundle
 from .epipolar import epipolar_matches, unit_plane_corners
 from .local_ba import local_sets

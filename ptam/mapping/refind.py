@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..tracking.patch_finder import PatchFinder
-from ..tracking.warp import patch_pixel_vectors, search_warps, template_matrices
+from ..patch.finder import PatchFinder
+from ..patch.warp import patch_pixel_vectors, search_warps, template_matrices
 
 
 @dataclass(frozen=True)

@@ -12,8 +12,8 @@ import numpy as np
 
 from ..map.keyframe import KeyFrame
 from ..map.map import SRC_ROOT, SRC_TRACKER
+from .dominant_plane import fit_dominant_plane, plane_aligner
 from .map_maker import NEW_POINT_LEVEL_ORDER, MapMaker
-from .plane import fit_dominant_plane, plane_aligner
 from .two_view import InitFailure, estimate_two_view
 
 

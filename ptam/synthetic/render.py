@@ -1,7 +1,7 @@
 """The renderer: per-sample rays through the camera model (distortion included) and the ray-cast kernel.
 
 Rays and their per-pixel differentials depend only on the camera, so they are computed once with
-``camera.unproject_rays``; each frame then costs one call of ``ptam.kernels.render.render``, which
+``camera.unproject_rays``; each frame then costs one call of ``ptam.synthetic.render_kernels.render``, which
 releases the GIL so frames render in parallel threads.
 """
 
@@ -13,9 +13,9 @@ import json
 import numpy as np
 
 from ..camera import CameraModel
-from ..kernels.render import render
 from .mipmap import TextureAtlas
 from .rectangle import Rectangle
+from .render_kernels import render
 from .texture import make_texture
 
 _DIFF_STEP_PX = 0.5  # half-width of the central difference giving ∂ray/∂(u, v)

@@ -36,9 +36,9 @@ import numpy as np
 
 from ..camera import camera_from_dict
 from ..errors import InputError
-from ..kernels.render import intersect_ref
 from .rectangle import Rectangle, rectangle_from_spec
 from .render import Renderer
+from .render_kernels import intersect_rays
 from .spec import resolve_scene, scene_hash
 from .texture import check_texture
 from .trajectory import Jitter, KeyPose, Trajectory, look_at, path_length
@@ -238,7 +238,7 @@ class Scene:
         T_wc = np.asarray(T_wc, dtype=np.float64)
         rays = self.camera.unproject_rays(np.asarray(uv, dtype=np.float64).reshape(-1, 2))
         d = rays @ T_wc[:3, :3].T
-        t, k, _, _ = intersect_ref(T_wc[:3, 3], d, self._packed)
+        t, k, _, _ = intersect_rays(T_wc[:3, 3], d, self._packed)
         hit = k >= 0
         t = np.where(hit, t, np.nan)
         return T_wc[:3, 3] + t[:, None] * d, t * rays[:, 2], hit

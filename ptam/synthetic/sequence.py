@@ -29,8 +29,9 @@ import yaml
 from tqdm import tqdm
 
 from ..camera import save_camera
+from ..config import SyntheticConfig
 from ..errors import InputError, PtamError
-from ..eval.trajectory import write_tum
+from ..eval.tum_io import write_tum
 from .scene import Scene, load_scene
 
 CACHE_ENV = "PTAM_CACHE_DIR"
@@ -98,26 +99,18 @@ def write_sequence(scene: Scene, out: str | os.PathLike, video: bool = False, th
     return out
 
 
-def cache_root(cache_dir: str | os.PathLike | None = None) -> Path:
-    """``PTAM_CACHE_DIR`` if set, else ``cache_dir``, else the configured ``synthetic.cache_dir``."""
+def cache_root(cache_dir: str | os.PathLike) -> Path:
+    """``PTAM_CACHE_DIR`` if set, else ``cache_dir`` (the configured ``synthetic.cache_dir``)."""
     if os.environ.get(CACHE_ENV):
         cache_dir = os.environ[CACHE_ENV]
-    elif cache_dir is None:
-        from ..config import default_config
-        cache_dir = default_config().synthetic.cache_dir
     return Path(os.path.expanduser(os.fspath(cache_dir)))
 
 
-def _render_threads() -> int:
-    from ..config import default_config
-    return default_config().synthetic.render_threads
-
-
-def ensure_sequence(name_or_path: str | os.PathLike, cache_dir: str | os.PathLike | None = None,
-                    video: bool = False) -> Path:
-    """The cached rendering of a scene (bundled name or file), rendered now if missing; returns its directory."""
+def ensure_sequence(name_or_path: str | os.PathLike, cfg: SyntheticConfig, video: bool = False) -> Path:
+    """The cached rendering of a scene (bundled name or file), rendered now if missing, under ``cfg.cache_dir``
+    with ``cfg.render_threads`` threads; returns its directory."""
     scene = load_scene(name_or_path)
-    root = cache_root(cache_dir) / "synthetic"
+    root = cache_root(cfg.cache_dir) / "synthetic"
     final = root / f"{scene.name}-{scene.hash}"
     try:
         root.mkdir(parents=True, exist_ok=True)
@@ -127,7 +120,7 @@ def ensure_sequence(name_or_path: str | os.PathLike, cache_dir: str | os.PathLik
         tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", dir=root))
         try:
             os.chmod(tmp, _DIR_MODE)  # mkdtemp makes it private; the finished entry is shared like any directory
-            write_sequence(scene, tmp, video=video, threads=_render_threads())
+            write_sequence(scene, tmp, video=video, threads=cfg.render_threads)
             try:
                 os.rename(tmp, final)
             except OSError:

@@ -1,6 +1,6 @@
 """Steps 4 and 6 of PTAM §5: the robust pose update from patch measurements (PTAM §5.4, §6.5).
 
-Each measurement's noise is σ = 2^level level-0 pixels (PTAM §5.4); ``ptam.kernels.irls.pose_irls`` runs the
+Each measurement's noise is σ = 2^level level-0 pixels (PTAM §5.4); ``ptam.tracking.pose_kernels.pose_irls`` runs the
 Tukey-biweight reweighted least squares on SE(3).
 """
 
@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernels.irls import pose_irls
+from .pose_kernels import pose_irls
 
 
 def update_pose(cam_params, tracker_cfg, T_cw, X, xy, level, coarse: bool):

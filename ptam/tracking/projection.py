@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..kernels.projection import project_map_points
+from .projection_kernels import project_map_points
 
 
 @dataclass(frozen=True)

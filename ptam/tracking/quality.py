@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 
-GOOD, POOR, BAD = "good", "poor", "bad"
+from ..vocabulary import Quality
+
+GOOD, POOR, BAD = Quality.GOOD, Quality.POOR, Quality.BAD
 
 
 class TrackingQuality:

@@ -19,8 +19,8 @@ import numpy as np
 
 from ..geometry import se3
 from ..image.pyramid import Pyramid
+from ..image.sbi import Alignment, SmallBlurryImage, small_level
 from .rotation_estimator import rotation_from_se2, sample_offsets
-from .sbi import Alignment, SmallBlurryImage, small_level
 
 
 @dataclass(frozen=True)

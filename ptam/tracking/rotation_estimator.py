@@ -13,7 +13,7 @@ import numpy as np
 
 from ..geometry import so3
 from ..image.pyramid import Pyramid, level_to_zero
-from .sbi import Alignment, SmallBlurryImage, small_level
+from ..image.sbi import Alignment, SmallBlurryImage, small_level
 
 
 def sample_offsets(radius: float) -> np.ndarray:

@@ -27,13 +27,13 @@ import numpy as np
 from ..errors import InputError
 from ..geometry import se3
 from ..image.pyramid import Pyramid
+from ..patch.finder import PatchFinder
+from ..patch.warp import patch_pixel_vectors, search_warps, template_matrices
 from .motion_model import MotionModel
-from .patch_finder import PatchFinder
 from .pose_update import update_pose
 from .projection import project_points
 from .quality import BAD, GOOD, TrackingQuality
 from .rotation_estimator import RotationEstimator
-from .warp import patch_pixel_vectors, search_warps, template_matrices
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ import numpy as np
 from ..image.fast import fast_corners
 from ..image.pyramid import Pyramid
 from ..image.shi_tomasi import shi_tomasi
-from ..kernels.minipatch import minipatch_find
+from .minipatch_kernels import minipatch_find
 
 
 class TrailTracker:

@@ -31,9 +31,9 @@ import rerun as rr
 
 from ..geometry import se3
 from ..map.snapshot import MapSnapshot
-from . import scene, style
+from . import map_entities, palette
+from ..vocabulary import TrackingState
 from .blueprint import default_blueprint
-from .state import INITIALISING, state_of
 
 _BA_CODES = {None: 0, "local": 1, "global": 2}
 
@@ -86,9 +86,9 @@ class Viewer:
         self.observe_ms.append(1e3 * (time.perf_counter() - t0))
 
     def _capture(self, outcome, system) -> _Item:
-        initialising = outcome is not None and outcome.state == INITIALISING
+        initialising = outcome is not None and outcome.state == TrackingState.INITIALISING
         trails = (system.trails.start_xy, system.trails.current_xy) if initialising and system.init_started else None
-        return _Item(outcome, state_of(outcome) if outcome is not None else self._state or INITIALISING,
+        return _Item(outcome, outcome.state if outcome is not None else self._state or TrackingState.INITIALISING,
                      system.mapper.snapshot, system.trajectory, len(system.trajectory), trails,
                      system.mapper.queue_size(), system.mapper.stats.get("ba_running"))
 
@@ -121,11 +121,11 @@ class Viewer:
         rec, c = self.rec, self.cfg
         rec.send_blueprint(default_blueprint())
         rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)  # PTAM §6.1: +z from the plane to the camera
-        f, pp, size = scene.level_intrinsics(self.camera, 0)
+        f, pp, size = map_entities.level_intrinsics(self.camera, 0)
         rec.log("world/camera/image", rr.Pinhole(focal_length=f, principal_point=pp, resolution=size,
                                                  image_plane_distance=c.camera_frustum_depth), static=True)
-        names = list(style.STATE_COLOURS)
-        rec.log("state", rr.StateConfiguration(values=names, colors=[style.STATE_COLOURS[n] for n in names]),
+        names = list(palette.STATE_COLOURS)
+        rec.log("state", rr.StateConfiguration(values=names, colors=[palette.STATE_COLOURS[n] for n in names]),
                 static=True)
 
     def _emit(self, path: str, *archetypes) -> None:
@@ -166,15 +166,15 @@ class Viewer:
             if len(missed):
                 Xc = se3.transform(o.result.T_cw, item.snapshot.X[missed])
                 failed_xy = self.camera.project(Xc[Xc[:, 2] > 0])
-        off = scene.RERUN_PIXEL_OFFSET
-        self._emit("world/camera/image/found", rr.Points2D(found_xy + off, colors=style.level_colours(found_level),
+        off = map_entities.RERUN_PIXEL_OFFSET
+        self._emit("world/camera/image/found", rr.Points2D(found_xy + off, colors=palette.level_colours(found_level),
                                                         radii=c.measurement_radius_px))
-        self._emit("world/camera/image/failed", rr.Points2D(failed_xy + off, colors=style.FAILED_COLOUR,
+        self._emit("world/camera/image/failed", rr.Points2D(failed_xy + off, colors=palette.FAILED_COLOUR,
                                                          radii=c.failed_radius_px))
         start, current = (np.zeros((0, 2)), np.zeros((0, 2))) if item.trails is None else item.trails
         self._emit("world/camera/image/trails", rr.Arrows2D(origins=np.asarray(start, np.float64) + off,
                                                          vectors=np.asarray(current - start, np.float64),
-                                                         colors=style.TRAIL_COLOUR))
+                                                         colors=palette.TRAIL_COLOUR))
 
     def _log_map(self, snap: MapSnapshot | None) -> None:
         c = self.cfg
@@ -189,26 +189,26 @@ class Viewer:
             self._emit("world/points", rr.Points3D(np.zeros((0, 3))))
             return
         good = snap.good_point_indices
-        self._emit("world/points", rr.Points3D(snap.X[good], colors=style.level_colours(snap.source_level[good]),
+        self._emit("world/points", rr.Points3D(snap.X[good], colors=palette.level_colours(snap.source_level[good]),
                                             radii=rr.Radius.ui_points(c.point_radius_ui)))
         n_old = len(self._kf_logged)
         T_wc = np.linalg.inv(snap.kf_T_cw)
         moved = np.ones(len(keyframes), bool)
         moved[:n_old] = np.any(self._kf_poses[:n_old] != snap.kf_T_cw[:n_old], axis=(1, 2))
         level = min(c.thumbnail_level, len(keyframes[0].pyramid.levels) - 1) if keyframes else 0
-        f, pp, size = scene.level_intrinsics(self.camera, level)
+        f, pp, size = map_entities.level_intrinsics(self.camera, level)
         for i in np.flatnonzero(moved):
             path = f"world/keyframes/{i:04d}"
             self._emit(path, rr.Transform3D(translation=T_wc[i, :3, 3], mat3x3=T_wc[i, :3, :3]))
             if i >= n_old:
                 self._emit(f"{path}/image", rr.Pinhole(focal_length=f, principal_point=pp, resolution=size,
                                                     image_plane_distance=c.frustum_depth,
-                                                    color=style.KEYFRAME_COLOUR),
+                                                    color=palette.KEYFRAME_COLOUR),
                         rr.Image(keyframes[i].pyramid.levels[level]))
         self._kf_logged, self._kf_poses = keyframes, np.array(snap.kf_T_cw)
         if keyframes and not self._grid:
-            lines, axis = scene.grid_lines(c.grid_spacing, c.grid_half_cells)
-            colours = np.where(axis[:, None], style.GRID_AXIS_COLOUR, style.GRID_COLOUR).astype(np.uint8)
+            lines, axis = map_entities.grid_lines(c.grid_spacing, c.grid_half_cells)
+            colours = np.where(axis[:, None], palette.GRID_AXIS_COLOUR, palette.GRID_COLOUR).astype(np.uint8)
             self._emit("world/grid", rr.LineStrips3D(lines, colors=colours))
             self._grid = True
 
@@ -220,7 +220,7 @@ class Viewer:
         new = [T[:3, 3] for _, T in trajectory[len(self._traj_xyz):n]]
         if new:
             self._traj_xyz = np.concatenate([self._traj_xyz, np.array(new)])
-        self._emit("world/trajectory", rr.LineStrips3D([self._traj_xyz], colors=style.TRAJECTORY_COLOUR))
+        self._emit("world/trajectory", rr.LineStrips3D([self._traj_xyz], colors=palette.TRAJECTORY_COLOUR))
 
     def _log_plots(self, o, item: _Item) -> None:
         snap = item.snapshot

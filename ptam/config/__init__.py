@@ -1,0 +1,50 @@
+"""Typed configuration: one frozen dataclass per section (``sections``), values from ``configs/default.yaml``
+overlaid by ``--config`` files and ``--set`` overrides (``loader``). Every tunable lives in the YAML file,
+commented with its source; the dataclasses carry types only."""
+
+from .loader import apply_overrides, default_config, load_config, parse_override
+from .sections import (
+    ArConfig,
+    BundleConfig,
+    CalibrateConfig,
+    CaptureConfig,
+    Config,
+    EvalConfig,
+    GtMapConfig,
+    ImageConfig,
+    InitConfig,
+    MapperConfig,
+    PatchConfig,
+    RelocConfig,
+    RotationConfig,
+    SynthCalibrationConfig,
+    SyntheticConfig,
+    SystemConfig,
+    TrackerConfig,
+    ViewerConfig,
+)
+
+__all__ = [
+    "ArConfig",
+    "BundleConfig",
+    "CalibrateConfig",
+    "CaptureConfig",
+    "Config",
+    "EvalConfig",
+    "GtMapConfig",
+    "ImageConfig",
+    "InitConfig",
+    "MapperConfig",
+    "PatchConfig",
+    "RelocConfig",
+    "RotationConfig",
+    "SynthCalibrationConfig",
+    "SyntheticConfig",
+    "SystemConfig",
+    "TrackerConfig",
+    "ViewerConfig",
+    "apply_overrides",
+    "default_config",
+    "load_config",
+    "parse_override",
+]

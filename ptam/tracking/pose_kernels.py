@@ -1,0 +1,165 @@
+"""Tukey-biweight iteratively reweighted least squares for the camera pose (PTAM §5.4, §6.5).
+
+Each measurement j is a level-0 pixel with noise σ_j = 2^level (PTAM §5.4); its error e_j = (û, v̂) −
+CamProj(exp(μ)·E_CW·p_j) (eq. 9) is scaled by 1/σ_j. The Tukey threshold c² comes from the median of the
+scaled squared errors (PTAM code ``Tukey::FindSigmaSquared``: σ = 1.4826·(1 + 5/(2n − 6))·√median,
+c = 4.6851·σ), floored at ``min_sigma``² (PTAM code, ``Bundle.MinTukeySigma``); weights are (1 − e²/c²)²
+inside c, 0 outside. The 6×6 normal equations, plus a stabilising prior on the diagonal (PTAM code:
+``WLS::add_prior``), give μ and E_CW ← exp(μ)·E_CW (eq. 6). Full projections and Jacobians are recomputed
+only every ``relinearise_every`` iterations and at the last one (PTAM §6.5); in between the predicted pixels
+move linearly by J·μ (PTAM code: ``TrackerData::LinearUpdate``).
+
+``pose_irls`` runs all iterations in one call; ``normal_equations`` and ``tukey_sigma_sq`` are its parts.
+The ``*_ref`` functions are the numpy references.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ..camera.camproj_kernels import project_jac
+from ..geometry.cholesky_kernels import cholesky_solve
+
+MAD_TO_SIGMA = 1.4826  # median absolute deviation -> standard deviation of a normal distribution
+TUKEY_C = 4.6851  # Tukey's constant for 95% efficiency under Gaussian noise
+
+
+@njit(nogil=True, cache=True)
+def tukey_sigma_sq(err_sq, min_sigma):
+    """Tukey c² from scaled squared errors (n,), floored at min_sigma²."""
+    n = err_sq.shape[0]
+    if n == 0:
+        return min_sigma * min_sigma
+    med = np.partition(err_sq, n // 2)[n // 2]
+    small_sample = 1.0 + 5.0 / max(2 * n - 6, 1)
+    c = TUKEY_C * MAD_TO_SIGMA * small_sample * math.sqrt(med)
+    return max(c * c, min_sigma * min_sigma)
+
+
+@njit(nogil=True, cache=True)
+def normal_equations(J, r, inv_sigma, w):
+    """H = Σ w s² JᵀJ (6, 6) and g = Σ w s² Jᵀr (6,) for pixel Jacobians J (n, 2, 6), residuals r (n, 2)."""
+    H = np.zeros((6, 6))
+    g = np.zeros(6)
+    for k in range(J.shape[0]):
+        wk = w[k] * inv_sigma[k] * inv_sigma[k]
+        if wk == 0.0:
+            continue
+        for a in range(6):
+            ja0 = J[k, 0, a] * wk
+            ja1 = J[k, 1, a] * wk
+            g[a] += ja0 * r[k, 0] + ja1 * r[k, 1]
+            for b in range(a, 6):
+                H[a, b] += ja0 * J[k, 0, b] + ja1 * J[k, 1, b]
+    for a in range(6):
+        for b in range(a):
+            H[a, b] = H[b, a]
+    return H, g
+
+
+@njit(nogil=True, cache=True)
+def se3_exp(mu):
+    """exp(μ) for μ = (translation, rotation) -> 4×4, as ``ptam.geometry.se3.exp``."""
+    w0, w1, w2 = mu[3], mu[4], mu[5]
+    t2 = w0 * w0 + w1 * w1 + w2 * w2
+    th = math.sqrt(t2)
+    if th < 1e-5:
+        A = 1.0 - t2 / 6.0 + t2 * t2 / 120.0
+        B = 0.5 - t2 / 24.0 + t2 * t2 / 720.0
+        C = 1.0 / 6.0 - t2 / 120.0 + t2 * t2 / 5040.0
+    else:
+        A = math.sin(th) / th
+        B = (1.0 - math.cos(th)) / t2
+        C = (th - math.sin(th)) / (t2 * th)
+    W = np.array([[0.0, -w2, w1], [w2, 0.0, -w0], [-w1, w0, 0.0]])
+    W2 = W @ W
+    T = np.eye(4)
+    V = np.eye(3) + B * W + C * W2
+    T[:3, :3] += A * W + B * W2
+    for r in range(3):
+        T[r, 3] = V[r, 0] * mu[0] + V[r, 1] * mu[1] + V[r, 2] * mu[2]
+    return T
+
+
+@njit(nogil=True, cache=True)
+def _linearise(cam, T, X, uv, J, valid):
+    Jp = np.empty((2, 3))
+    for k in range(X.shape[0]):
+        x = T[0, 0] * X[k, 0] + T[0, 1] * X[k, 1] + T[0, 2] * X[k, 2] + T[0, 3]
+        y = T[1, 0] * X[k, 0] + T[1, 1] * X[k, 1] + T[1, 2] * X[k, 2] + T[1, 3]
+        z = T[2, 0] * X[k, 0] + T[2, 1] * X[k, 1] + T[2, 2] * X[k, 2] + T[2, 3]
+        if z <= 1e-12:
+            valid[k] = False
+            continue
+        valid[k] = True
+        u, v, _ = project_jac(cam, x, y, z, Jp)
+        uv[k, 0] = u
+        uv[k, 1] = v
+        # ∂(exp(μ)·Xc)/∂μ = [I | −[Xc]×]
+        for r in range(2):
+            J[k, r, 0] = Jp[r, 0]
+            J[k, r, 1] = Jp[r, 1]
+            J[k, r, 2] = Jp[r, 2]
+            J[k, r, 3] = Jp[r, 1] * -z + Jp[r, 2] * y
+            J[k, r, 4] = Jp[r, 0] * z - Jp[r, 2] * x
+            J[k, r, 5] = -Jp[r, 0] * y + Jp[r, 1] * x
+
+
+@njit(nogil=True, cache=True)
+def pose_irls(cam, T_cw, X, meas, inv_sigma, n_iters, relinearise_every, min_sigma, prior,
+              override_after, override_sigma_sq):
+    """Robust pose from world points X (n, 3) measured at level-0 pixels meas (n, 2) with 1/σ inv_sigma (n,).
+
+    ``override_sigma_sq`` > 0 replaces the median-based c² in iterations after ``override_after`` (PTAM code's
+    fixed sigma); 0 keeps the median throughout (PTAM §5.4). Returns the pose and the last weights (n,).
+    """
+    n = X.shape[0]
+    T = T_cw.copy()
+    uv = np.zeros((n, 2))
+    J = np.zeros((n, 2, 6))
+    valid = np.zeros(n, dtype=np.bool_)
+    r = np.zeros((n, 2))
+    w = np.zeros(n)
+    err_sq = np.zeros(n)
+    mu = np.zeros(6)
+    for it in range(n_iters):
+        if it % relinearise_every == 0 or it == n_iters - 1:
+            _linearise(cam, T, X, uv, J, valid)
+        else:
+            for k in range(n):
+                for a in range(2):
+                    s = 0.0
+                    for b in range(6):
+                        s += J[k, a, b] * mu[b]
+                    uv[k, a] += s
+        m = 0
+        for k in range(n):
+            r[k, 0] = meas[k, 0] - uv[k, 0]
+            r[k, 1] = meas[k, 1] - uv[k, 1]
+            if valid[k]:
+                err_sq[m] = (r[k, 0] * r[k, 0] + r[k, 1] * r[k, 1]) * inv_sigma[k] * inv_sigma[k]
+                m += 1
+        if m == 0:
+            break
+        if override_sigma_sq > 0.0 and it > override_after:
+            c2 = override_sigma_sq
+        else:
+            c2 = tukey_sigma_sq(err_sq[:m], min_sigma)
+        for k in range(n):
+            w[k] = 0.0
+            if valid[k]:
+                e2 = (r[k, 0] * r[k, 0] + r[k, 1] * r[k, 1]) * inv_sigma[k] * inv_sigma[k]
+                if e2 <= c2:
+                    q = 1.0 - e2 / c2
+                    w[k] = q * q
+        H, g = normal_equations(J, r, inv_sigma, w)
+        for a in range(6):
+            H[a, a] += prior
+        mu, ok = cholesky_solve(H, g, 6, 0.0)
+        if not ok:
+            break
+        T = se3_exp(mu) @ T
+    return T, w

@@ -1,0 +1,36 @@
+"""Shared test setup: the synthetic-sequence cache lives in a temporary directory for the session, so the suite
+leaves nothing in the user's home (set ``PTAM_TEST_CACHE_DIR`` to keep renders between sessions)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+
+import pytest
+
+from ptam.synthetic.sequence import CACHE_ENV
+
+_created: list[str] = []
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line("markers", "slow: replays a whole synthetic sequence through the system (seconds)")
+    cache = os.environ.get("PTAM_TEST_CACHE_DIR")
+    if not cache:
+        cache = tempfile.mkdtemp(prefix="ptam-test-cache-")
+        _created.append(cache)
+    os.environ[CACHE_ENV] = cache
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    for path in _created:
+        shutil.rmtree(path, ignore_errors=True)
+
+
+@pytest.fixture(scope="session")
+def cfg():
+    """The default configuration (tests that change it use ``cfg.replace``)."""
+    from tests.support import config
+
+    return config()
