@@ -24,10 +24,13 @@ import logging
 import threading
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
+from .camera import load_camera
 from .camera.model import CameraModel
+from .capture import open_dataset
 from .config import Config
 from .geometry import se3
 from .image.pyramid import Pyramid
@@ -64,7 +67,7 @@ class RunStats:
     frames: int = 0
     tracked: int = 0
     lost_events: int = 0
-    relocalisations: int = 0   # lost -> tracking through a relocalisation (Agility §7)
+    relocalisations: int = 0  # lost -> tracking through a relocalisation (Agility §7)
     reloc_attempts: int = 0
     keyframes_requested: int = 0
     init_attempts: int = 0
@@ -83,9 +86,16 @@ class System:
     the tracker's thread (the viewer); they must be cheap and must not block. ``init_mode``: ``"auto"`` or
     ``"key"`` (stereo initialisation keyframes taken by :meth:`request_keyframe`)."""
 
-    def __init__(self, camera: CameraModel, cfg: Config, mode: RunMode | str | None = None,
-                 init_frames: tuple[int, int] | None = None, map_: Map | None = None, localize_only: bool = False,
-                 init_mode: InitMode | str = InitMode.AUTO):
+    def __init__(
+        self,
+        camera: CameraModel,
+        cfg: Config,
+        mode: RunMode | str | None = None,
+        init_frames: tuple[int, int] | None = None,
+        map_: Map | None = None,
+        localize_only: bool = False,
+        init_mode: InitMode | str = InitMode.AUTO,
+    ):
         init_mode = InitMode(init_mode)
         self.camera = camera
         self.cfg = cfg
@@ -105,7 +115,7 @@ class System:
             self.tracker.set_pose(self.mapper.map.kf_T_cw[0], recovered=True)
         self.trajectory: list[tuple[float, np.ndarray]] = []  # (timestamp, T_wc) per tracked frame
         self.stats = RunStats()
-        self._first = None            # (pyramid, timestamp, index) of the first stereo keyframe
+        self._first: tuple[Pyramid, float, int] | None = None  # the first stereo keyframe: pyramid, time, index
         self._init_frames: list = []  # frames seen since the first keyframe, tracked once a map exists
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
@@ -179,10 +189,7 @@ class System:
         self._check_mapper()
         t0 = time.perf_counter()
         self.stats.frames += 1
-        if not self.mapper.initialised:
-            out = self._initialise(frame)
-        else:
-            out = self._track(frame)
+        out = self._track(frame) if self.mapper.initialised else self._initialise(frame)
         out.process_ms = 1e3 * (time.perf_counter() - t0)
         out.frame = frame
         for observe in self.observers:
@@ -228,16 +235,31 @@ class System:
         are tracked but not used for map-building (Agility §10)."""
         m = self.cfg.mapper
         kf = res.keyframe
-        if self.localize_only or res.rapid_motion or not (
-                res.quality == Quality.GOOD and kf.frames_since_keyframe > m.kf_min_frames
+        if (
+            self.localize_only
+            or res.rapid_motion
+            or not (
+                res.quality == Quality.GOOD
+                and kf.frames_since_keyframe > m.kf_min_frames
                 and self.mapper.queue_size() < m.kf_max_queue
-                and self.mapper.need_new_keyframe(kf.nearest_keyframe_distance, kf.mean_scene_depth)):
+                and self.mapper.need_new_keyframe(kf.nearest_keyframe_distance, kf.mean_scene_depth)
+            )
+        ):
             return False
         meas = res.measurements
         f = meas.found
-        self.mapper.add_keyframe(KeyframeRequest(res.pyramid, res.T_cw.copy(), res.timestamp, meas.point_ids[f],
-                                                 meas.xy[f], meas.level[f], kf.mean_scene_depth,
-                                                 kf.scene_depth_sigma))
+        self.mapper.add_keyframe(
+            KeyframeRequest(
+                res.pyramid,
+                res.T_cw.copy(),
+                res.timestamp,
+                meas.point_ids[f],
+                meas.xy[f],
+                meas.level[f],
+                kf.mean_scene_depth,
+                kf.scene_depth_sigma,
+            )
+        )
         self.tracker.keyframe_added()
         self.stats.keyframes_requested += 1
         if self.mode == RunMode.SYNC:
@@ -292,8 +314,9 @@ class System:
         self.stats.init_attempts += 1
         first = self._first
         try:
-            T = init_from_stereo(self.mapper, first[:2], (pyramid, float(frame.timestamp)),
-                                 self.trails.start_xy, self.trails.current_xy)
+            T = init_from_stereo(
+                self.mapper, first[:2], (pyramid, float(frame.timestamp)), self.trails.start_xy, self.trails.current_xy
+            )
         except InitFailure as e:
             self.mapper = MapMaker(self.camera, self.cfg)
             if restarts:
@@ -303,8 +326,9 @@ class System:
                 self.stats.init_failures.append(str(e))
                 self._first = None
             return idle
-        log.info("map initialised from frames %d and %d: %d points", first[2], frame.index,
-                 self.mapper.snapshot.n_points)
+        snap = self.mapper.snapshot
+        n_points = snap.n_points if snap is not None else 0
+        log.info("map initialised from frames %d and %d: %d points", first[2], frame.index, n_points)
         self._after_init(first, frame, T)
         return FrameOutcome(int(frame.index), float(frame.timestamp), TrackingState.GOOD, T, None, True)
 
@@ -330,11 +354,6 @@ class System:
 def run_dataset(path, cfg: Config, mode: RunMode | str | None = None, **kwargs) -> System:
     """Run a whole dataset folder (TUM/EuRoC/images with its ``camera.yaml``, stamped at ``capture.default_fps``
     where the dataset has no timestamps) through a System; returns it."""
-    from pathlib import Path
-
-    from .camera import load_camera
-    from .capture import open_dataset
-
     path = Path(path)
     camera = load_camera(path / "camera.yaml")
     with open_dataset(path, cfg.capture.default_fps) as src, System(camera, cfg, mode=mode, **kwargs) as system:

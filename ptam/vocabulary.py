@@ -87,6 +87,14 @@ class CalibrationLoss(StrEnum):
     CAUCHY = "cauchy"
 
 
+class LensModel(StrEnum):
+    """Camera models: PTAM's FOV (ATAN) model, the plain pinhole, OpenCV's radial-tangential."""
+
+    PINHOLE = "pinhole"
+    FOV = "fov"
+    RADTAN = "radtan"
+
+
 class DistortionModel(StrEnum):
     """Lens models a synthetic calibration sequence can be rendered with."""
 

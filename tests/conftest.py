@@ -15,7 +15,6 @@ _created: list[str] = []
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    config.addinivalue_line("markers", "slow: replays a whole synthetic sequence through the system (seconds)")
     cache = os.environ.get("PTAM_TEST_CACHE_DIR")
     if not cache:
         cache = tempfile.mkdtemp(prefix="ptam-test-cache-")

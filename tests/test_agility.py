@@ -26,17 +26,20 @@ SACCADE_PANS = ((75, 80), (95, 100))
 class Run:
     system: System
     outcomes: list
-    n_points: np.ndarray      # map points after each frame
-    n_keyframes: np.ndarray   # map keyframes after each frame
-    version: np.ndarray       # map version after each frame
-    poses: dict               # frame index -> T_wc of tracked frames
+    n_points: np.ndarray  # map points after each frame
+    n_keyframes: np.ndarray  # map keyframes after each frame
+    version: np.ndarray  # map version after each frame
+    poses: dict  # frame index -> T_wc of tracked frames
 
 
 def _run(scene: str, **overrides) -> Run:
     cfg = load_config().replace(**overrides) if overrides else load_config()
     d = sequence(scene)
     outcomes, pts, kfs, ver = [], [], [], []
-    with open_dataset(d, capture().default_fps) as src, System(load_camera(d / "camera.yaml"), cfg, mode="sync") as system:
+    with (
+        open_dataset(d, capture().default_fps) as src,
+        System(load_camera(d / "camera.yaml"), cfg, mode="sync") as system,
+    ):
         for frame in src:
             outcomes.append(system.process(frame))
             snap = system.mapper.snapshot
@@ -93,10 +96,12 @@ def test_kidnap_relocalises_within_five_frames_and_stays_accurate(kidnap):
     after = idx > last_black
     rmse_before = float(np.sqrt(np.mean(err[before] ** 2)))
     rmse_after = float(np.sqrt(np.mean(err[after] ** 2)))
-    print(f"kidnap: tracking again at frame {back} ({back - last_black} after the black frames), "
-          f"{stats.relocalisations} relocalisation(s) in {stats.reloc_attempts} attempts; ATE before "
-          f"{1e3 * rmse_before:.2f} mm, after {1e3 * rmse_after:.2f} mm; rotation error after "
-          f"{ang[after].max():.2f} deg max")
+    print(
+        f"kidnap: tracking again at frame {back} ({back - last_black} after the black frames), "
+        f"{stats.relocalisations} relocalisation(s) in {stats.reloc_attempts} attempts; ATE before "
+        f"{1e3 * rmse_before:.2f} mm, after {1e3 * rmse_after:.2f} mm; rotation error after "
+        f"{ang[after].max():.2f} deg max"
+    )
     assert back - last_black <= 5
     assert stats.lost_events == 1 and stats.relocalisations == 1
     assert after.sum() >= len(states) - back - 1  # tracked from the relocalisation to the end
@@ -126,10 +131,12 @@ def test_saccade_is_tracked_through_with_the_rotation_estimator(saccade_on):
     for a, b in SACCADE_PANS:
         in_pans |= (idx > a) & (idx < b)  # the blurred frames
     rest = ~in_pans & (idx >= SACCADE_PANS[0][0] - 10)
-    print(f"saccade, rotation estimator on: {stats.lost_events} losses, tracked {len(run.poses)} of "
-          f"{len(run.outcomes)} frames; blurred pan frames: position error {1e3 * err[in_pans].max():.1f} mm, "
-          f"rotation error {ang[in_pans].max():.2f} deg max; around them: {1e3 * err[rest].max():.1f} mm, "
-          f"{ang[rest].max():.2f} deg max")
+    print(
+        f"saccade, rotation estimator on: {stats.lost_events} losses, tracked {len(run.poses)} of "
+        f"{len(run.outcomes)} frames; blurred pan frames: position error {1e3 * err[in_pans].max():.1f} mm, "
+        f"rotation error {ang[in_pans].max():.2f} deg max; around them: {1e3 * err[rest].max():.1f} mm, "
+        f"{ang[rest].max():.2f} deg max"
+    )
     assert stats.lost_events == 0 and stats.relocalisations == 0
     assert all(o.state.is_tracking for o in run.outcomes if o.index >= 40)
     assert in_pans.sum() == sum(b - a - 1 for a, b in SACCADE_PANS)  # every blurred frame has a pose
@@ -147,7 +154,9 @@ def test_saccade_without_the_rotation_estimator_loses_tracking(saccade_off):
     stats = run.system.stats
     pan_end = SACCADE_PANS[0][1]
     states = {o.index: o.state for o in run.outcomes}
-    print(f"saccade, rotation estimator off: {stats.lost_events} losses, {stats.relocalisations} "
-          f"relocalisations, tracked {len(run.poses)} of {len(run.outcomes)} frames")
+    print(
+        f"saccade, rotation estimator off: {stats.lost_events} losses, {stats.relocalisations} "
+        f"relocalisations, tracked {len(run.poses)} of {len(run.outcomes)} frames"
+    )
     assert stats.lost_events >= 1
     assert all(states[i] in (LOST, RELOCALISING) for i in range(pan_end, SACCADE_PANS[1][0]))

@@ -29,8 +29,7 @@ def _angle_deg(R):
 
 def _pyramids(scene, frames):
     d = sequence(scene)
-    return {i: Pyramid.build(cv2.imread(str(d / f"rgb/{i:06d}.png"), cv2.IMREAD_GRAYSCALE), CFG.image)
-            for i in frames}
+    return {i: Pyramid.build(cv2.imread(str(d / f"rgb/{i:06d}.png"), cv2.IMREAD_GRAYSCALE), CFG.image) for i in frames}
 
 
 def test_small_blurry_image_is_40x30_zero_mean_and_blurred():
@@ -75,8 +74,10 @@ def test_rotation_estimator_follows_the_saccade():
         errs.append(_angle_deg(so3.exp(w).T @ R_gt))
         angles.append(_angle_deg(R_gt))
     errs, angles = np.array(errs), np.array(angles)
-    print(f"rotation estimator: true motion up to {angles.max():.1f} deg/frame, error {errs.max():.2f} deg max, "
-          f"{np.median(errs):.3f} median")
+    print(
+        f"rotation estimator: true motion up to {angles.max():.1f} deg/frame, error {errs.max():.2f} deg max, "
+        f"{np.median(errs):.3f} median"
+    )
     assert angles.max() > 8.5
     assert errs.max() < 0.5 and np.median(errs) < 0.05
 
@@ -108,9 +109,11 @@ def test_relocaliser_finds_the_nearest_keyframe_and_aligns_the_view():
         px = np.linalg.norm(sc.camera.project(se3.transform(r.T_cw, X[hit])) - uv[hit], axis=1)
         frame = SmallBlurryImage.from_pyramid(pyrs[i], CFG.reloc.blur_sigma)
         direct = [frame.ssd(SmallBlurryImage.from_pyramid(kf.pyramid, CFG.reloc.blur_sigma)) for kf in snap.keyframes]
-        print(f"frame {i}: keyframe {r.keyframe} at {gap[r.keyframe]:.3f} m (nearest {gap.min():.3f} m), "
-              f"scene reprojects within {np.median(px):.1f} px (median), {px.max():.1f} px (max); "
-              f"aligned SSD {r.alignment.score:.0f}")
+        print(
+            f"frame {i}: keyframe {r.keyframe} at {gap[r.keyframe]:.3f} m (nearest {gap.min():.3f} m), "
+            f"scene reprojects within {np.median(px):.1f} px (median), {px.max():.1f} px (max); "
+            f"aligned SSD {r.alignment.score:.0f}"
+        )
         assert r.accepted and reloc.n_keyframes == len(kf_frames)
         assert r.keyframe in np.argsort(gap)[:2]
         assert np.median(px) < 5.0 and px.max() < 15.0

@@ -19,8 +19,9 @@ ENV = {**os.environ, "DISPLAY": "", "WAYLAND_DISPLAY": ""}
 
 
 def ptam_run(*argv):
-    return subprocess.run([sys.executable, "-m", "ptam", "run", *argv], cwd=ROOT, capture_output=True, text=True,
-                          timeout=120, env=ENV)
+    return subprocess.run(
+        [sys.executable, "-m", "ptam", "run", *argv], cwd=ROOT, capture_output=True, text=True, timeout=120, env=ENV
+    )
 
 
 def _truncated_video(tmp_path):
@@ -38,24 +39,38 @@ def _truncated_video(tmp_path):
 def _wrong_size_calibration(tmp_path):
     for i in range(3):
         cv2.imwrite(str(tmp_path / f"{i:04d}.png"), np.full((240, 320), 40 * i, np.uint8))
-    calib = {"model": "fov", "width": 640, "height": 480, "fx": 384.0, "fy": 384.0, "cx": 319.5, "cy": 239.5,
-             "omega": 0.9}
+    calib = {
+        "model": "fov",
+        "width": 640,
+        "height": 480,
+        "fx": 384.0,
+        "fy": 384.0,
+        "cx": 319.5,
+        "cy": 239.5,
+        "omega": 0.9,
+    }
     (tmp_path / "camera.yaml").write_text(yaml.safe_dump(calib))
     return ["--dataset", str(tmp_path)], "is for 640x480 images but"
 
 
 def _corrupt_map(tmp_path):
     (tmp_path / "map.npz").write_bytes(b"PK\x03\x04" + bytes(range(256)) * 8)
-    return ["--dataset", str(sequence("two_wall_short")), "--load-map", str(tmp_path / "map.npz")], \
-        "is not a ptam map file"
+    return [
+        "--dataset",
+        str(sequence("two_wall_short")),
+        "--load-map",
+        str(tmp_path / "map.npz"),
+    ], "is not a ptam map file"
 
 
 CASES = {
     "nonexistent path": lambda tmp_path: (["--dataset", str(tmp_path / "nowhere")], "dataset directory not found"),
     "truncated video": _truncated_video,
     "calibration size mismatch": _wrong_size_calibration,
-    "unknown --set key": lambda tmp_path: (["--set", "tracker.max_patchs=3"],
-                                           "unknown config key 'tracker.max_patchs' (did you mean"),
+    "unknown --set key": lambda tmp_path: (
+        ["--set", "tracker.max_patchs=3"],
+        "unknown config key 'tracker.max_patchs' (did you mean",
+    ),
     "missing v4l2 device": lambda tmp_path: (["--camera", "v4l2:/dev/video63"], "cannot open camera"),
     "corrupt map file": _corrupt_map,
 }
@@ -74,9 +89,28 @@ def test_bad_input_exits_2_with_one_line(case, tmp_path):
 def test_sigint_during_a_run_still_writes_the_trajectory(tmp_path):
     d = sequence("two_wall_short")
     traj = tmp_path / "traj.txt"
-    proc = subprocess.Popen([sys.executable, "-m", "ptam", "run", "--dataset", str(d), "--mode", "sync",
-                             "--no-viewer", "--trajectory", str(traj), "--map", str(tmp_path / "map.npz")],
-                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "ptam",
+            "run",
+            "--dataset",
+            str(d),
+            "--mode",
+            "sync",
+            "--no-viewer",
+            "--trajectory",
+            str(traj),
+            "--map",
+            str(tmp_path / "map.npz"),
+        ],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=ENV,
+    )
     for line in proc.stderr:  # wait until a map exists ...
         if "map initialised" in line:
             break

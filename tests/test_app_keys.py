@@ -59,9 +59,15 @@ def test_space_presses_take_the_two_stereo_keyframes_and_reset_starts_over(tmp_p
     chunks = RrdReader(tmp_path / "run.rrd").stream().to_chunks()
 
     def logged(entity, component):  # in logging order (row ids grow with time; frame numbers restart after reset)
-        rows = [r for c in chunks if c.entity_path == entity for r in zip(
-            c.to_record_batch().column("rerun.controls.RowId").to_pylist(),
-            c.to_record_batch().column(component).to_pylist())]
+        rows = [
+            r
+            for c in chunks
+            if c.entity_path == entity
+            for r in zip(
+                c.to_record_batch().column("rerun.controls.RowId").to_pylist(),
+                c.to_record_batch().column(component).to_pylist(),
+            )
+        ]
         return [v for _, v in sorted(rows)]
 
     assert logged("/world/keyframes", "Clear:is_recursive") == [[True]]
@@ -92,10 +98,9 @@ def test_status_line_only_on_a_terminal():
         display.frame_done(lambda fps: "good")
     assert quiet.getvalue() == ""
     master, slave = os.openpty()
-    with os.fdopen(slave, "w") as tty:
-        with Display(None, 0.0, stream=tty) as display:
-            display.frame_done(lambda fps: f"good {fps:.0f} fps")
-            display.write("ptam: a log line")
+    with os.fdopen(slave, "w") as tty, Display(None, 0.0, stream=tty) as display:
+        display.frame_done(lambda fps: f"good {fps:.0f} fps")
+        display.write("ptam: a log line")
     text = b""
     while True:  # everything written, up to the terminal's end (EIO once the other side is closed)
         try:

@@ -19,7 +19,7 @@ from ptam.synthetic import load_scene
 FRAMES = (0, 70, 140)
 SPACING_M = 0.4
 HALF_CELLS = 15
-ORIGIN = np.array([-10.5, 0.0, 3.0])                            # on the wall, in front of the first frames
+ORIGIN = np.array([-10.5, 0.0, 3.0])  # on the wall, in front of the first frames
 R_PW = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])  # plane x = world x, y = up, z = -y
 T_PW = se3.from_Rt(R_PW, -R_PW @ ORIGIN)
 BORDER_PX = 40
@@ -60,9 +60,11 @@ def test_renderer_vertices_are_the_exact_projections(scene, rendered):
         err = np.abs(pg.vertex_uv[inside] - uv[inside]).max()
         distortion = np.linalg.norm(uv - pin.project(Xc), axis=1)
         near = inside & ~cam.in_image(uv, BORDER_PX)
-        print(f"frame {i}: {inside.sum()} vertices in view, max |renderer - project| {err:.2e} px; "
-              f"{near.sum()} within {BORDER_PX} px of the border, lens moves them {distortion[near].min():.0f}-"
-              f"{distortion[near].max():.0f} px")
+        print(
+            f"frame {i}: {inside.sum()} vertices in view, max |renderer - project| {err:.2e} px; "
+            f"{near.sum()} within {BORDER_PX} px of the border, lens moves them {distortion[near].min():.0f}-"
+            f"{distortion[near].max():.0f} px"
+        )
         assert err < 1e-6
         assert near.sum() >= 20 and distortion[near].max() > 60
 
@@ -148,8 +150,10 @@ def test_drawn_grid_vertices_within_half_a_pixel_of_the_truth(scene, rendered):
         near = ~scene.camera.in_image(found[ok][hit], BORDER_PX)
         errs.append(e)
         border_errs.append(e[near])
-        print(f"frame {i}: {len(e)} vertices detected, error median {np.median(e):.3f} px, max {e.max():.3f} px; "
-              f"{near.sum()} within {BORDER_PX} px of the border, max {e[near].max():.3f} px")
+        print(
+            f"frame {i}: {len(e)} vertices detected, error median {np.median(e):.3f} px, max {e.max():.3f} px; "
+            f"{near.sum()} within {BORDER_PX} px of the border, max {e[near].max():.3f} px"
+        )
     e, eb = np.concatenate(errs), np.concatenate(border_errs)
     assert len(e) >= 300 and len(eb) >= 40
     assert e.max() < 0.5 and eb.max() < 0.5

@@ -96,8 +96,14 @@ _FIRST_KEYFRAME = object()
 
 
 def _snapshot(X, T_cw, first=_FIRST_KEYFRAME):
-    return SimpleNamespace(X=X, good_point_indices=np.arange(len(X)), n_points=len(X), n_keyframes=1,
-                           kf_T_cw=T_cw[None], keyframes=(first,))
+    return SimpleNamespace(
+        X=X,
+        good_point_indices=np.arange(len(X)),
+        n_points=len(X),
+        n_keyframes=1,
+        kf_T_cw=T_cw[None],
+        keyframes=(first,),
+    )
 
 
 def test_plane_is_refitted_when_the_map_grows_and_content_stays_anchored(cfg):

@@ -41,8 +41,10 @@ def test_sync_run_writes_one_augmented_frame_per_tracked_frame(tmp_path):
         layer.close()
     frames = _read_all(video)
     poses = len(system.trajectory)
-    print(f"{poses} tracked frames ({len(tracked)} reported live, the others tracked once the stereo map existed), "
-          f"{len(frames)} video frames; render median {np.median(layer.render_ms):.2f} ms")
+    print(
+        f"{poses} tracked frames ({len(tracked)} reported live, the others tracked once the stereo map existed), "
+        f"{len(frames)} video frames; render median {np.median(layer.render_ms):.2f} ms"
+    )
     assert poses >= 190 and len(frames) == poses == layer.frames_written and layer.dropped == 0
     assert frames[0].shape == (camera.height, camera.width, 3)
     # The overlay is there: the eyes are colour on a grey frame, and the video differs from the frame.

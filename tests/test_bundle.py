@@ -29,8 +29,9 @@ def run(prob, n_fixed=1, start="init", cfg=CFG, **kw):
     poses = (prob.poses_init if start == "init" else prob.poses_true).copy()
     poses[fixed] = prob.poses_true[fixed]
     points = prob.points_init if start == "init" else prob.points_true
-    return Bundle(prob.camera, cfg).adjust(poses, points, prob.meas_kf, prob.meas_pt, prob.meas_xy,
-                                           prob.meas_level, fixed, **kw)
+    return Bundle(prob.camera, cfg).adjust(
+        poses, points, prob.meas_kf, prob.meas_pt, prob.meas_xy, prob.meas_level, fixed, **kw
+    )
 
 
 def pose_errors(T_est, T_true):
@@ -38,9 +39,11 @@ def pose_errors(T_est, T_true):
 
     The alignment uses each camera's centre and the tips of its axes (length 1 in the estimate, s in the
     truth, s from the centres alone), so the rotation about a line of centres is fixed by the orientations."""
+
     def pose_points(T, arm):
         c = camera_centres(T)
         return np.concatenate([c] + [c + arm * T[:, a, :3] for a in range(3)])
+
     s0 = umeyama(camera_centres(T_est), camera_centres(T_true))[0]
     s, R, t = umeyama(pose_points(T_est, 1.0), pose_points(T_true, s0))
     dc = np.linalg.norm(s * camera_centres(T_est) @ R.T + t - camera_centres(T_true), axis=1)

@@ -28,8 +28,9 @@ def test_bundle_releases_the_gil():
     other = Xc.copy()
 
     def ba():
-        bundle.adjust(prob.poses_init, prob.points_init, prob.meas_kf, prob.meas_pt, prob.meas_xy,
-                      prob.meas_level, fixed)
+        bundle.adjust(
+            prob.poses_init, prob.points_init, prob.meas_kf, prob.meas_pt, prob.meas_xy, prob.meas_level, fixed
+        )
 
     def for_seconds(work, seconds):
         t0 = time.perf_counter()
@@ -68,6 +69,8 @@ def test_bundle_releases_the_gil():
         stop.set()
         th.join()
     rate = {k: n / t for k, (n, t) in counted.items()}
-    print(f"kernel calls/s alone {rate['alone']:.0f}, beside a nogil kernel {rate['nogil']:.0f}, "
-          f"beside BA {rate['ba']:.0f} (ratio to alone {rate['ba'] / rate['alone']:.2f})")
+    print(
+        f"kernel calls/s alone {rate['alone']:.0f}, beside a nogil kernel {rate['nogil']:.0f}, "
+        f"beside BA {rate['ba']:.0f} (ratio to alone {rate['ba'] / rate['alone']:.2f})"
+    )
     assert rate["ba"] >= 0.7 * rate["nogil"]

@@ -16,8 +16,20 @@ from ptam.errors import InputError
 from ptam.synthetic.sequence import write_video
 
 CFG = default_config().calibrate
-RADTAN = {"model": "radtan", "width": 640, "height": 480, "fx": 500.0, "fy": 502.0, "cx": 322.0, "cy": 236.5,
-          "k1": -0.28, "k2": 0.09, "p1": 0.0008, "p2": -0.0005, "k3": 0.0}
+RADTAN = {
+    "model": "radtan",
+    "width": 640,
+    "height": 480,
+    "fx": 500.0,
+    "fy": 502.0,
+    "cx": 322.0,
+    "cy": 236.5,
+    "k1": -0.28,
+    "k2": 0.09,
+    "p1": 0.0008,
+    "p2": -0.0005,
+    "k3": 0.0,
+}
 
 
 def run(capsys, *argv):
@@ -35,8 +47,20 @@ def fov_sequence(tmp_path_factory):
 
 
 def test_fov_camera_recovered_from_rendered_sequence(fov_sequence, tmp_path, capsys):
-    code, out, err = run(capsys, "calibrate", "--images", fov_sequence, "--board", "9x6", "--square", "0.04",
-                         "--model", "fov", "-o", tmp_path / "camera.yaml")
+    code, out, err = run(
+        capsys,
+        "calibrate",
+        "--images",
+        fov_sequence,
+        "--board",
+        "9x6",
+        "--square",
+        "0.04",
+        "--model",
+        "fov",
+        "-o",
+        tmp_path / "camera.yaml",
+    )
     assert code == 0, err
     true = load_camera(fov_sequence / "camera.yaml")
     fit = load_camera(tmp_path / "camera.yaml")
@@ -59,8 +83,12 @@ def test_detected_corners_match_the_rendered_truth(fov_sequence):
         collector = ViewCollector(board, (640, 480), CFG)
         if collector.add(i, 0.0, img):
             c = collector.views[0].corners
-            errors.append(min(np.sqrt(np.mean(np.sum((c - truth_i) ** 2, 1))),
-                              np.sqrt(np.mean(np.sum((c[::-1] - truth_i) ** 2, 1)))))
+            errors.append(
+                min(
+                    np.sqrt(np.mean(np.sum((c - truth_i) ** 2, 1))),
+                    np.sqrt(np.mean(np.sum((c[::-1] - truth_i) ** 2, 1))),
+                )
+            )
     assert len(errors) >= 27  # of 30 rendered views
     assert np.sqrt(np.mean(np.square(errors))) < 0.08 and max(errors) < 0.15  # px
 
@@ -70,8 +98,16 @@ def test_radtan_camera_recovered_from_scene_file_video(tmp_path, capsys):
     scene.write_text(yaml.safe_dump({"calibration": {"views": 24, "seed": 3}, "camera": RADTAN}))
     code, out, err = run(capsys, "synth", scene, tmp_path / "seq", "--video")
     assert code == 0, err
-    code, out, err = run(capsys, "calibrate", "--video", tmp_path / "seq" / "video.avi", "--model", "radtan",
-                         "-o", tmp_path / "camera.yaml")
+    code, out, err = run(
+        capsys,
+        "calibrate",
+        "--video",
+        tmp_path / "seq" / "video.avi",
+        "--model",
+        "radtan",
+        "-o",
+        tmp_path / "camera.yaml",
+    )
     assert code == 0, err
     fit = load_camera(tmp_path / "camera.yaml")
     assert fit.model == "radtan"
@@ -96,8 +132,10 @@ def synthetic_observations(camera, n_views, seed):
     return board.points() - board.points().mean(0), np.array(obs)
 
 
-@pytest.mark.parametrize("camera", [FovCamera(640, 480, 384.0, 380.0, 325.0, 236.0, 0.9),
-                                    PinholeCamera(640, 480, 520.0, 518.0, 315.0, 245.0)])
+@pytest.mark.parametrize(
+    "camera",
+    [FovCamera(640, 480, 384.0, 380.0, 325.0, 236.0, 0.9), PinholeCamera(640, 480, 520.0, 518.0, 315.0, 245.0)],
+)
 def test_bad_views_are_dropped_and_the_fit_repeated(camera):
     points, obs = synthetic_observations(camera, 16, seed=1)
     rng = np.random.default_rng(2)
@@ -119,8 +157,9 @@ def test_view_selection_covers_the_image_then_spreads():
     board = Board(9, 6, 0.04)
     _, obs = synthetic_observations(camera, 12, seed=4)
     # 100 near-copies of view 0 (a video lingering on one pose) and the 11 others once each.
-    views = [View(i, 0.0, obs[0] + 0.01 * i) for i in range(100)] + [View(100 + i, 0.0, o) for i, o in
-                                                                    enumerate(obs[1:])]
+    views = [View(i, 0.0, obs[0] + 0.01 * i) for i in range(100)] + [
+        View(100 + i, 0.0, o) for i, o in enumerate(obs[1:])
+    ]
     cfg = default_config().replace(**{"calibrate.max_views": 12}).calibrate
     chosen = select_views(views, board, (640, 480), cfg)
     frames = [v.frame for v in chosen]
@@ -129,8 +168,16 @@ def test_view_selection_covers_the_image_then_spreads():
 
 def test_missing_cells_are_named():
     centre = np.array([[300.0, 200.0], [340.0, 260.0], [320.0, 240.0]])
-    assert missing_cells(centre, (640, 480), 3) == ["top-left", "top", "top-right", "left", "right",
-                                                    "bottom-left", "bottom", "bottom-right"]
+    assert missing_cells(centre, (640, 480), 3) == [
+        "top-left",
+        "top",
+        "top-right",
+        "left",
+        "right",
+        "bottom-left",
+        "bottom",
+        "bottom-right",
+    ]
     everywhere = np.stack(np.meshgrid(np.linspace(0, 639, 5), np.linspace(0, 479, 5)), -1).reshape(-1, 2)
     assert missing_cells(everywhere, (640, 480), 3) == []
 
@@ -186,8 +233,13 @@ def test_coverage_warning_names_the_empty_cells(fov_sequence, tmp_path, capsys):
     assert "ptam: warning: no detected corner in the image's top-left (3x3 grid)" in err
 
 
-@pytest.mark.parametrize("model,intr", [("fov", [384.0, 380.0, 325.0, 236.0, 0.9]),
-                                        ("radtan", [500.0, 502.0, 322.0, 236.5, -0.28, 0.09, 0.0008, -0.0005, 0.01])])
+@pytest.mark.parametrize(
+    "model,intr",
+    [
+        ("fov", [384.0, 380.0, 325.0, 236.0, 0.9]),
+        ("radtan", [500.0, 502.0, 322.0, 236.5, -0.28, 0.09, 0.0008, -0.0005, 0.01]),
+    ],
+)
 def test_jacobian_matches_finite_differences(model, intr):
     rng = np.random.default_rng(5)
     points = Board(9, 6, 0.04).points()
@@ -198,14 +250,18 @@ def test_jacobian_matches_finite_differences(model, intr):
     for k in range(len(intr)):
         d = np.zeros_like(intr)
         d[k] = h * max(1.0, abs(intr[k]))
-        num = (project_views(model, (640, 480), intr + d, poses, points)
-               - project_views(model, (640, 480), intr - d, poses, points)) / (2 * d[k])
+        num = (
+            project_views(model, (640, 480), intr + d, poses, points)
+            - project_views(model, (640, 480), intr - d, poses, points)
+        ) / (2 * d[k])
         assert np.allclose(J_intr[..., k], num, rtol=1e-5, atol=1e-4)
     for k in range(6):
         d = np.zeros_like(poses)
         d[:, k] = h
-        num = (project_views(model, (640, 480), intr, poses + d, points)
-               - project_views(model, (640, 480), intr, poses - d, points)) / (2 * h)
+        num = (
+            project_views(model, (640, 480), intr, poses + d, points)
+            - project_views(model, (640, 480), intr, poses - d, points)
+        ) / (2 * h)
         assert np.allclose(J_pose[..., k], num, rtol=1e-5, atol=1e-3)
 
 

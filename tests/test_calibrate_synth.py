@@ -30,8 +30,10 @@ def reference_render(camera, board, T_cb, offsets, u0, v0, size):
     return shades[board.regions(pts, np.ones(pts.shape[:-1], bool))].mean(axis=-1)
 
 
-CAMERAS = (FovCamera(640, 480, 384.0, 384.0, 319.5, 239.5, 0.9),
-           RadTanCamera(640, 480, 512.0, 512.0, 319.5, 239.5, -0.25, 0.08, 0.001, -0.0005, 0.0))
+CAMERAS = (
+    FovCamera(640, 480, 384.0, 384.0, 319.5, 239.5, 0.9),
+    RadTanCamera(640, 480, 512.0, 512.0, 319.5, 239.5, -0.25, 0.08, 0.001, -0.0005, 0.0),
+)
 
 
 def test_renderer_matches_exact_per_sample_unprojection():
@@ -45,7 +47,7 @@ def test_renderer_matches_exact_per_sample_unprojection():
             c = true_corners(camera, BOARD.board, T[None])[0][20]  # an inner corner: four squares meet
             u0, v0 = int(c[0]) - 10, int(c[1]) - 10
             ref = reference_render(camera, BOARD, T, r.sub, u0, v0, 21)
-            diff = np.abs(img[v0:v0 + 21, u0:u0 + 21] - ref)
+            diff = np.abs(img[v0 : v0 + 21, u0 : u0 + 21] - ref)
             assert diff.max() <= (SHADES[1] - SHADES[0]) / cfg.edge_samples + 1e-9
             assert diff.mean() < 0.05  # grey levels
             assert img.min() == SHADES[0] and img.max() == SHADES[1]
@@ -81,8 +83,8 @@ def test_rendered_edges_sit_where_the_camera_model_puts_them():
                     v = int(round(v_p))
                     u_e = edge_crossing(camera, T, i * BOARD.square, v, u_p)
                     a = int(round(u_e)) - half
-                    f = (img[v, a:a + 2 * half + 1] - SHADES[0]) / (SHADES[1] - SHADES[0])
-                    if not ({f[0], f[-1]} == {0.0, 1.0}):
+                    f = (img[v, a : a + 2 * half + 1] - SHADES[0]) / (SHADES[1] - SHADES[0])
+                    if {f[0], f[-1]} != {0.0, 1.0}:
                         continue  # the row leaves the two squares (a corner or another edge is near)
                     covered = f.sum() if f[0] == 1.0 else (1.0 - f).sum()
                     errors.append(a - 0.5 + covered - u_e)

@@ -75,21 +75,23 @@ def test_yaml_round_trip(tmp_path):
 
 
 def test_ptam_normalised_vector_is_accepted():
-    cam = camera_from_dict({"model": "fov", "width": 640, "height": 480,
-                            "ptam": [0.6, 0.8, 0.5, 0.5, 0.9]})
+    cam = camera_from_dict({"model": "fov", "width": 640, "height": 480, "ptam": [0.6, 0.8, 0.5, 0.5, 0.9]})
     assert cam.fx == pytest.approx(384.0) and cam.fy == pytest.approx(384.0)
     assert cam.cx == pytest.approx(319.5) and cam.cy == pytest.approx(239.5)
     assert cam.ptam_vector() == pytest.approx([0.6, 0.8, 0.5, 0.5, 0.9])
 
 
-@pytest.mark.parametrize("patch, message", [
-    ({"fx": -1.0}, "focal lengths must be positive"),
-    ({"cx": 700.0}, "principal point"),
-    ({"omega": 3.5}, "omega"),
-    ({"omega": 0.0}, "omega"),
-    ({"width": None}, "width"),
-    ({"model": "fisheye"}, "unknown camera model"),
-])
+@pytest.mark.parametrize(
+    "patch, message",
+    [
+        ({"fx": -1.0}, "focal lengths must be positive"),
+        ({"cx": 700.0}, "principal point"),
+        ({"omega": 3.5}, "omega"),
+        ({"omega": 0.0}, "omega"),
+        ({"width": None}, "width"),
+        ({"model": "fisheye"}, "unknown camera model"),
+    ],
+)
 def test_yaml_validation(tmp_path, patch, message):
     d = dict(CAMERAS["fov"].to_dict())
     d.update(patch)

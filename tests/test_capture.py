@@ -217,8 +217,13 @@ class ClocklessCapture:
         return True
 
     def get(self, prop):
-        return {cv2.CAP_PROP_FRAME_WIDTH: W, cv2.CAP_PROP_FRAME_HEIGHT: H, cv2.CAP_PROP_FPS: 0.0,
-                cv2.CAP_PROP_FRAME_COUNT: 4, cv2.CAP_PROP_POS_MSEC: 0.0}[prop]
+        return {
+            cv2.CAP_PROP_FRAME_WIDTH: W,
+            cv2.CAP_PROP_FRAME_HEIGHT: H,
+            cv2.CAP_PROP_FPS: 0.0,
+            cv2.CAP_PROP_FRAME_COUNT: 4,
+            cv2.CAP_PROP_POS_MSEC: 0.0,
+        }[prop]
 
     def read(self):
         self.left -= 1

@@ -46,8 +46,12 @@ class FakeCapture:
         return True
 
     def get(self, prop):
-        return {cv2.CAP_PROP_FRAME_WIDTH: 320.0, cv2.CAP_PROP_FRAME_HEIGHT: 240.0, cv2.CAP_PROP_FPS: 15.0,
-                cv2.CAP_PROP_POS_MSEC: 1000.0 + 66.0 * self.delivered}[prop]
+        return {
+            cv2.CAP_PROP_FRAME_WIDTH: 320.0,
+            cv2.CAP_PROP_FRAME_HEIGHT: 240.0,
+            cv2.CAP_PROP_FPS: 15.0,
+            cv2.CAP_PROP_POS_MSEC: 1000.0 + 66.0 * self.delivered,
+        }[prop]
 
     def read(self):
         if self.delivered >= self.frames:

@@ -14,8 +14,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def ptam(*argv):
-    return subprocess.run([sys.executable, "-m", "ptam", *argv], cwd=ROOT, capture_output=True, text=True,
-                          timeout=120)
+    return subprocess.run([sys.executable, "-m", "ptam", *argv], cwd=ROOT, capture_output=True, text=True, timeout=120)
 
 
 def assert_one_line_error(proc, text):
@@ -34,8 +33,9 @@ def test_run_unknown_config_key_subprocess():
 
 
 def test_eval_missing_file_subprocess(tmp_path):
-    assert_one_line_error(ptam("eval", str(tmp_path / "gt.txt"), str(tmp_path / "est.txt")),
-                          "trajectory file not found")
+    assert_one_line_error(
+        ptam("eval", str(tmp_path / "gt.txt"), str(tmp_path / "est.txt")), "trajectory file not found"
+    )
 
 
 def run_in_process(capsys, *argv):
@@ -75,8 +75,16 @@ def test_run_without_texture_ends_cleanly_with_an_empty_trajectory(tmp_path, cap
     """PTAM §6.1 needs texture and motion: black frames, or too few frames, cannot initialise."""
     for i in range(3):
         cv2.imwrite(str(tmp_path / f"{i:04d}.png"), np.zeros((480, 640), np.uint8))
-    calib = {"model": "fov", "width": 640, "height": 480, "fx": 384.0, "fy": 384.0, "cx": 319.5, "cy": 239.5,
-             "omega": 0.9}
+    calib = {
+        "model": "fov",
+        "width": 640,
+        "height": 480,
+        "fx": 384.0,
+        "fy": 384.0,
+        "cx": 319.5,
+        "cy": 239.5,
+        "omega": 0.9,
+    }
     (tmp_path / "camera.yaml").write_text(yaml.safe_dump(calib))
     traj = tmp_path / "traj.txt"
     code = cli_main(["run", "--dataset", str(tmp_path), "--no-viewer", "--mode", "sync", "--trajectory", str(traj)])

@@ -33,15 +33,18 @@ def test_overlay_file_and_set(tmp_path):
     assert isinstance(load_config(overrides=["tracker.quality_good=1"]).tracker.quality_good, float)
 
 
-@pytest.mark.parametrize("override, message", [
-    ("tracker.max_patchs=3", r"unknown config key 'tracker.max_patchs' \(did you mean 'tracker.max_patches'\?\)"),
-    ("trackr.max_patches=3", r"unknown config section 'trackr' \(did you mean 'tracker'\?\)"),
-    ("tracker.max_patches=many", r"tracker.max_patches must be int"),
-    ("tracker.max_patches=1.5", r"tracker.max_patches must be int"),
-    ("image.fast_thresholds=[1, a]", r"image.fast_thresholds\[1\] must be int"),
-    ("system.mode=fast", r"system.mode must be one of"),
-    ("tracker", r"--set expects section.key=value"),
-])
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        ("tracker.max_patchs=3", r"unknown config key 'tracker.max_patchs' \(did you mean 'tracker.max_patches'\?\)"),
+        ("trackr.max_patches=3", r"unknown config section 'trackr' \(did you mean 'tracker'\?\)"),
+        ("tracker.max_patches=many", r"tracker.max_patches must be int"),
+        ("tracker.max_patches=1.5", r"tracker.max_patches must be int"),
+        ("image.fast_thresholds=[1, a]", r"image.fast_thresholds\[1\] must be int"),
+        ("system.mode=fast", r"system.mode must be one of"),
+        ("tracker", r"--set expects section.key=value"),
+    ],
+)
 def test_bad_overrides(override, message):
     with pytest.raises(ConfigError, match=message):
         load_config(overrides=[override])

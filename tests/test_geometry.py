@@ -13,8 +13,9 @@ def _random_axes(n):
     return a / np.linalg.norm(a, axis=1, keepdims=True)
 
 
-@pytest.mark.parametrize("angle", [0.0, 1e-12, 1e-9, 1e-6, 1e-3, 0.5, 2.0, np.pi - 1e-3, np.pi - 1e-6,
-                                   np.pi - 1e-9, np.pi])
+@pytest.mark.parametrize(
+    "angle", [0.0, 1e-12, 1e-9, 1e-6, 1e-3, 0.5, 2.0, np.pi - 1e-3, np.pi - 1e-6, np.pi - 1e-9, np.pi]
+)
 def test_so3_exp_log_round_trip(angle):
     w = _random_axes(50) * angle
     R = so3.exp(w)

@@ -27,8 +27,8 @@ def assemble(blocks, rows, cols, n_free):
     """The symmetric (6N)² matrix from its lower-triangle blocks."""
     S = np.zeros((6 * n_free, 6 * n_free))
     for B, r, c in zip(blocks, rows, cols):
-        S[6 * r:6 * r + 6, 6 * c:6 * c + 6] = B
-        S[6 * c:6 * c + 6, 6 * r:6 * r + 6] = B.T
+        S[6 * r : 6 * r + 6, 6 * c : 6 * c + 6] = B
+        S[6 * c : 6 * c + 6, 6 * r : 6 * r + 6] = B.T
     return S
 
 
@@ -86,16 +86,18 @@ def linearised(problem):
     c2 = K.tukey_cutoff_sq(e2, use, bad, 0.4)
     U, ea, V, eb = np.empty((nf, 6, 6)), np.empty((nf, 6)), np.empty((m, 3, 3)), np.empty((m, 3))
     W, live = np.zeros((n, 6, 3)), np.empty(n, bool)
-    cost = K.ba_linearise(cam.kernel_params(), P, X, st.mcam, st.mpt, uv, inv_sigma, use, c2, st.cam_row,
-                          U, ea, V, eb, W, live)
+    cost = K.ba_linearise(
+        cam.kernel_params(), P, X, st.mcam, st.mpt, uv, inv_sigma, use, c2, st.cam_row, U, ea, V, eb, W, live
+    )
     return c2, (U, ea, V, eb, W, live, cost)
 
 
 def test_linearise_blocks(problem):
     cam, P, X, uv, inv_sigma, use, st = problem
     c2, (U, ea, V, eb, W, live, cost) = linearised(problem)
-    rU, rea, rV, reb, rW, rlive, rcost = R.ba_linearise_ref(cam, P, X, st.mcam, st.mpt, uv, inv_sigma, use, c2,
-                                                            st.cam_row, len(st.pts))
+    rU, rea, rV, reb, rW, rlive, rcost = R.ba_linearise_ref(
+        cam, P, X, st.mcam, st.mpt, uv, inv_sigma, use, c2, st.cam_row, len(st.pts)
+    )
     assert np.array_equal(live, rlive) and 0 < live.sum() < use.sum()
     assert close(cost, rcost)
     for a, b in ((U, rU), (ea, rea), (V, rV), (eb, reb)):
@@ -137,7 +139,7 @@ def test_envelope_cholesky_on_a_banded_system():
     blocks[:nb] += np.swapaxes(blocks[:nb], 1, 2)
     S = assemble(blocks, rows, cols, nb)
     S += np.diag(np.abs(S).sum(axis=1))  # diagonally dominant, so positive definite
-    blocks[:nb] = np.stack([S[6 * r:6 * r + 6, 6 * r:6 * r + 6] for r in range(nb)])
+    blocks[:nb] = np.stack([S[6 * r : 6 * r + 6, 6 * r : 6 * r + 6] for r in range(nb)])
     rhs = rng.normal(size=6 * nb)
     for dense in (True, False):
         rank = np.arange(nb) if dense else np.argsort(order)

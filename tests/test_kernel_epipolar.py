@@ -20,7 +20,7 @@ def test_kernel_matches_reference():
     for k in range(0, n, 2):
         x, y = corners[rng.integers(50, 350)]
         x, y = np.clip(x, 4, 75), np.clip(y, 4, 55)
-        p = img[y - 4:y + 4, x - 4:x + 4].astype(np.float32)
+        p = img[y - 4 : y + 4, x - 4 : x + 4].astype(np.float32)
         templates[k] = p - p.mean()
     ang = rng.uniform(0, np.pi, n)
     along = np.stack([np.cos(ang), np.sin(ang)], axis=1)
@@ -34,10 +34,10 @@ def test_kernel_matches_reference():
     box[1::2, :2] = rng.integers(-10, 50, (n // 2, 2))
     box[1::2, 2:] = box[1::2, :2] + rng.integers(5, 60, (n // 2, 2))
     lut = row_lut(corners, img.shape[0])
-    best, score = epipolar_search(img, corners, plane, lut, box, templates, normal, dist, along, lo, hi, max_perp,
-                                  1e9)
-    best_r, score_r = epipolar_search_ref(img, corners, plane, box, templates, normal, dist, along, lo, hi,
-                                          max_perp, 1e9)
+    best, score = epipolar_search(img, corners, plane, lut, box, templates, normal, dist, along, lo, hi, max_perp, 1e9)
+    best_r, score_r = epipolar_search_ref(
+        img, corners, plane, box, templates, normal, dist, along, lo, hi, max_perp, 1e9
+    )
     assert (best >= 0).sum() > n // 4
     assert np.array_equal(best, best_r)
     ok = best >= 0

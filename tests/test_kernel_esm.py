@@ -19,7 +19,8 @@ def _blobs(rng, n=25):
 
     def f(x, y):
         d2 = (x[..., None] - centres[:, 0]) ** 2 + (y[..., None] - centres[:, 1]) ** 2
-        return (amp * np.exp(-0.5 * d2 / sigma ** 2)).sum(-1)
+        return (amp * np.exp(-0.5 * d2 / sigma**2)).sum(-1)
+
     return f
 
 

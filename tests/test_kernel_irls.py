@@ -36,7 +36,7 @@ def _problem(cam, rng, n, noise_px, outlier_fraction):
     ang = rng.uniform(0.0, 2 * np.pi, bad.sum())
     size = rng.uniform(10.0, 40.0, bad.sum()) * 2.0 ** level[bad]  # gross errors at the measurement's scale
     meas[bad] += size[:, None] * np.stack([np.cos(ang), np.sin(ang)], axis=1)
-    return T_true, X, meas, 0.5 ** level, bad
+    return T_true, X, meas, 0.5**level, bad
 
 
 @pytest.mark.parametrize("name", list(CAMERAS))

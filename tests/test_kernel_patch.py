@@ -48,8 +48,9 @@ def test_make_templates_matches_reference():
     assert np.abs(t[ok].mean(axis=(1, 2))).max() < 1e-3
     # Identity warp at an integer pixel copies the image window [x - 4, x + 3].
     img = kf_images[0][1]
-    t1, ok1 = make_templates(kf_images, np.array([1], np.int32), np.array([0], np.int8),
-                             np.array([[50.0, 40.0]]), np.eye(2)[None], SIZE)
+    t1, ok1 = make_templates(
+        kf_images, np.array([1], np.int32), np.array([0], np.int8), np.array([[50.0, 40.0]]), np.eye(2)[None], SIZE
+    )
     win = img[36:44, 46:54].astype(np.float64)
     assert ok1[0] and np.allclose(t1[0], win - win.mean(), atol=1e-3)
 
@@ -63,8 +64,14 @@ def test_search_patches_matches_reference_and_finds_the_source():
     truth = np.array([corners[L][j] for L, j in zip(level, pick)])
     # Templates cut from the image at the true corner.
     kf_images = tuple(im[None] for im in levels)
-    t, ok = make_templates(kf_images, np.zeros(n, np.int32), level.astype(np.int8), truth.astype(np.float64),
-                           np.broadcast_to(np.eye(2), (n, 2, 2)).copy(), SIZE)
+    t, ok = make_templates(
+        kf_images,
+        np.zeros(n, np.int32),
+        level.astype(np.int8),
+        truth.astype(np.float64),
+        np.broadcast_to(np.eye(2), (n, 2, 2)).copy(),
+        SIZE,
+    )
     center = truth + rng.integers(-4, 5, (n, 2))
     radius = np.full(n, 6, np.int32)
     max_ssd = 500.0 * SIZE * SIZE
@@ -91,8 +98,14 @@ def test_refine_subpix_matches_reference_and_recovers_shifts():
     truth = rng.uniform(0.0, 1.0, (n, 2)) * (wh - 24) + 12
     # Templates sampled at the sub-pixel truth (identity warp) with a brightness offset of up to 20 levels.
     kf_images = tuple(im[None] for im in levels)
-    t, ok = make_templates(kf_images, np.zeros(n, np.int32), level.astype(np.int8), truth,
-                           np.broadcast_to(np.eye(2), (n, 2, 2)).copy(), SIZE)
+    t, ok = make_templates(
+        kf_images,
+        np.zeros(n, np.int32),
+        level.astype(np.int8),
+        truth,
+        np.broadcast_to(np.eye(2), (n, 2, 2)).copy(),
+        SIZE,
+    )
     t = t + rng.uniform(-20.0, 20.0, (n, 1, 1)).astype(np.float32)
     start = np.rint(truth) + rng.integers(-1, 2, (n, 2))
     xy, conv = refine_subpix(levels, t, level, start, 10, 0.03)

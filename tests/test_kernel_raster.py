@@ -112,7 +112,7 @@ def test_polyline_kernel_matches_reference():
     assert np.abs(cov - ref).max() < 1e-6 and (ref > 0).sum() > 500
     assert n == np.count_nonzero(cov) and set(touched[:n]) == set(np.flatnonzero(cov))
     img = rng.integers(0, 256, (H, W, 3), dtype=np.uint8)
-    expect = (img * (1 - 0.4 * ref[..., None]) + np.array([10.0, 200.0, 30.0]) * 0.4 * ref[..., None] + 0.5)
+    expect = img * (1 - 0.4 * ref[..., None]) + np.array([10.0, 200.0, 30.0]) * 0.4 * ref[..., None] + 0.5
     blend_coverage(img, cov, touched, n, np.array([10.0, 200.0, 30.0]), 0.4)
     assert np.abs(img.astype(int) - expect.astype(np.uint8).astype(int)).max() <= 1
     assert not cov.any()  # cleared for the next frame
@@ -129,8 +129,15 @@ def test_sphere_silhouette_lands_on_the_projected_tangent_circle(rays):
         rec[0, 0:3], rec[0, 3], rec[0, 4:13] = c, radius, np.eye(3).ravel()
         rec[0, 13:22] = 200.0
         z = np.full((CAM.height, CAM.width), np.inf)
-        draw_spheres(np.zeros((CAM.height, CAM.width, 3), np.uint8), z, rays, rec, _full_boxes(1),
-                     np.array([0.0, 0.0, -1.0]), SHADING)
+        draw_spheres(
+            np.zeros((CAM.height, CAM.width, 3), np.uint8),
+            z,
+            rays,
+            rec,
+            _full_boxes(1),
+            np.array([0.0, 0.0, -1.0]),
+            SHADING,
+        )
         mask = np.isfinite(z)  # pixels at least half covered
         L = np.linalg.norm(c)
         d = c / L

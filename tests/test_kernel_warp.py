@@ -49,6 +49,8 @@ def test_warp_columns_are_projected_pixel_displacements():
     eps = 1e-4
     for k in range(2):
         for col, d in enumerate((right[k], down[k])):
-            fd = (cam.project(se3.transform(T, Xw[k] + eps * d)[None])[0]
-                  - cam.project(se3.transform(T, Xw[k] - eps * d)[None])[0]) / (2 * eps)
+            fd = (
+                cam.project(se3.transform(T, Xw[k] + eps * d)[None])[0]
+                - cam.project(se3.transform(T, Xw[k] - eps * d)[None])[0]
+            ) / (2 * eps)
             assert np.allclose(A[k, :, col], fd, rtol=1e-6)

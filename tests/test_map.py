@@ -25,11 +25,17 @@ def _filled(n_kf=3, n_pts=10):
     for i in range(n_kf):
         assert m.add_keyframe(_kf(m, i), _pose(i)) == i
     rng = np.random.default_rng(5)
-    idx = m.add_points(rng.normal(size=(n_pts, 3)), np.tile([0.0, 0.0, -1.0], (n_pts, 1)),
-                       rng.integers(0, n_kf, n_pts), rng.integers(0, 4, n_pts), rng.uniform(0, 50, (n_pts, 2)))
+    idx = m.add_points(
+        rng.normal(size=(n_pts, 3)),
+        np.tile([0.0, 0.0, -1.0], (n_pts, 1)),
+        rng.integers(0, n_kf, n_pts),
+        rng.integers(0, 4, n_pts),
+        rng.uniform(0, 50, (n_pts, 2)),
+    )
     assert np.array_equal(idx, np.arange(n_pts))
-    m.add_measurements(np.repeat(np.arange(n_kf), n_pts), np.tile(np.arange(n_pts), n_kf),
-                       rng.uniform(0, 100, (n_kf * n_pts, 2)), 0)
+    m.add_measurements(
+        np.repeat(np.arange(n_kf), n_pts), np.tile(np.arange(n_pts), n_kf), rng.uniform(0, 100, (n_kf * n_pts, 2)), 0
+    )
     return m
 
 
@@ -50,8 +56,21 @@ def test_add_and_snapshot_contents():
 def test_snapshot_is_read_only_and_unchanged_by_later_edits():
     m = _filled()
     s = m.snapshot()
-    arrays = [s.kf_T_cw, *s.kf_images, s.X, s.normal, s.source_kf, s.source_level, s.source_xy, s.bad,
-              s.meas_kf, s.meas_pt, s.meas_xy, s.meas_level, s.good_point_indices]
+    arrays = [
+        s.kf_T_cw,
+        *s.kf_images,
+        s.X,
+        s.normal,
+        s.source_kf,
+        s.source_level,
+        s.source_xy,
+        s.bad,
+        s.meas_kf,
+        s.meas_pt,
+        s.meas_xy,
+        s.meas_level,
+        s.good_point_indices,
+    ]
     assert not any(a.flags.writeable for a in arrays)
     with pytest.raises(ValueError):
         s.X[0, 0] = 1.0

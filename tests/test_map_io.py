@@ -14,8 +14,21 @@ from ptam.eval import associate, ate, read_tum
 from ptam.map.map_file import VERSION, load_map, save_map
 from tests.support import sequence
 
-COLUMNS = ("X", "normal", "source_kf", "source_level", "source_xy", "bad", "meas_kf", "meas_pt", "meas_xy",
-           "meas_level", "meas_source", "kf_T_cw", "good_point_indices")
+COLUMNS = (
+    "X",
+    "normal",
+    "source_kf",
+    "source_level",
+    "source_xy",
+    "bad",
+    "meas_kf",
+    "meas_pt",
+    "meas_xy",
+    "meas_level",
+    "meas_source",
+    "kf_T_cw",
+    "good_point_indices",
+)
 
 
 def _rows(path):
@@ -26,8 +39,20 @@ def _rows(path):
 def saved(tmp_path_factory):
     d = sequence("two_wall_short")
     out = tmp_path_factory.mktemp("map")
-    code = cli_main(["run", "--dataset", str(d), "--mode", "sync", "--no-viewer", "--map", str(out / "map.npz"),
-                     "--keyframes", str(out / "kf.txt")])
+    code = cli_main(
+        [
+            "run",
+            "--dataset",
+            str(d),
+            "--mode",
+            "sync",
+            "--no-viewer",
+            "--map",
+            str(out / "map.npz"),
+            "--keyframes",
+            str(out / "kf.txt"),
+        ]
+    )
     assert code == 0
     return d, out
 
@@ -57,9 +82,23 @@ def test_saved_map_reloads_exactly(saved):
 
 def test_localize_only_tracks_the_same_sequence_without_adding_keyframes(saved, capsys):
     d, out = saved
-    code = cli_main(["run", "--dataset", str(d), "--mode", "sync", "--no-viewer", "--load-map",
-                     str(out / "map.npz"), "--localize-only", "--trajectory", str(out / "traj.txt"),
-                     "--keyframes", str(out / "kf2.txt")])
+    code = cli_main(
+        [
+            "run",
+            "--dataset",
+            str(d),
+            "--mode",
+            "sync",
+            "--no-viewer",
+            "--load-map",
+            str(out / "map.npz"),
+            "--localize-only",
+            "--trajectory",
+            str(out / "traj.txt"),
+            "--keyframes",
+            str(out / "kf2.txt"),
+        ]
+    )
     text = capsys.readouterr().out
     assert code == 0
     t_gt, T_gt = read_tum(d / "groundtruth.txt")
@@ -77,8 +116,12 @@ def test_broken_map_files_are_refused(saved, tmp_path):
     _, out = saved
     image_cfg = load_config().image
     data = (out / "map.npz").read_bytes()
-    cases = {"missing.npz": None, "text.npz": b"not a map\n", "truncated.npz": data[: len(data) // 2],
-             "flipped.npz": data[:1000] + bytes(b ^ 0x5A for b in data[1000:1100]) + data[1100:]}
+    cases = {
+        "missing.npz": None,
+        "text.npz": b"not a map\n",
+        "truncated.npz": data[: len(data) // 2],
+        "flipped.npz": data[:1000] + bytes(b ^ 0x5A for b in data[1000:1100]) + data[1100:],
+    }
     for name, content in cases.items():
         if content is not None:
             (tmp_path / name).write_bytes(content)

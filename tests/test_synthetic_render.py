@@ -29,7 +29,7 @@ def _edge_crossings(img, lines, vertical):
     out = {}
     for line, pred in lines.items():
         lo, hi = int(round(pred)) - 6, int(round(pred)) + 6
-        prof = img[line, lo:hi + 1] if vertical else img[lo:hi + 1, line]
+        prof = img[line, lo : hi + 1] if vertical else img[lo : hi + 1, line]
         cov = (prof.astype(np.float64) - DARK) / (BRIGHT - DARK)
         out[line] = (hi + 0.5 - cov.sum()) if cov[-1] > cov[0] else (lo - 0.5 + cov.sum())
     return out
@@ -55,9 +55,13 @@ def test_wall_corners_land_on_their_projection(two_wall, wall):
     The rendered corner is where curves fitted to the measured edge crossings 8-50 px from it intersect."""
     rect = next(r for r in two_wall.rectangles if r.name == wall)
     n = rect.normal
-    bg = {"name": "background", "center": (rect.corners().mean(0) + n).tolist(),
-          "axes": [rect.axis_a.tolist(), rect.axis_b.tolist()], "size": [rect.size[0] + 30, rect.size[1] + 30],
-          "texture": {"type": "constant", "value": DARK}}
+    bg = {
+        "name": "background",
+        "center": (rect.corners().mean(0) + n).tolist(),
+        "axes": [rect.axis_a.tolist(), rect.axis_b.tolist()],
+        "size": [rect.size[0] + 30, rect.size[1] + 30],
+        "texture": {"type": "constant", "value": DARK},
+    }
     fg = {"name": wall, "corners": rect.corners().tolist(), "texture": {"type": "constant", "value": BRIGHT}}
     _, spec, _ = resolve_scene("two_wall")  # its camera and rendering (supersampling, optics blur)
     scene = Scene("corner", {**spec, "rectangles": [fg, bg]})
@@ -101,7 +105,7 @@ def test_raycast_agrees_with_renderer(two_wall):
     cam = scene.camera
     for i in (0, 120, 199):
         img = scene.render_frame(i)
-        vv, uu = np.mgrid[0:cam.height:7, 0:cam.width:7]
+        vv, uu = np.mgrid[0 : cam.height : 7, 0 : cam.width : 7]
         uv = np.stack([uu.ravel(), vv.ravel()], 1).astype(np.float64)
         T_wc = scene.poses_T_wc[i]
         X, depth, hit = scene.raycast(T_wc, uv)
@@ -155,19 +159,33 @@ def test_fast_finds_corners_everywhere_at_every_level(two_wall, frame):
 def test_sensor_effects():
     """Black frames, brightness drift, pixel noise and motion blur do what the scene file says."""
     _, spec, _ = resolve_scene("two_wall_short")
-    spec = {**spec, "camera": {**spec["camera"], "width": 160, "height": 120, "fx": 96.0, "fy": 96.0,
-                               "cx": 79.5, "cy": 59.5}}
+    spec = {
+        **spec,
+        "camera": {**spec["camera"], "width": 160, "height": 120, "fx": 96.0, "fy": 96.0, "cx": 79.5, "cy": 59.5},
+    }
     plain = Scene("plain", {**spec, "render": {"supersample": 2}})
-    fx = Scene("fx", {**spec, "render": {"supersample": 2, "black_frames": [[3, 4]],
-                                         "brightness": {"amplitude": 0.2, "period_s": 1.0},
-                                         "noise": {"sigma": 3.0, "seed": 7},
-                                         "motion_blur": {"subframes": 5, "exposure": 0.8}}})
+    fx = Scene(
+        "fx",
+        {
+            **spec,
+            "render": {
+                "supersample": 2,
+                "black_frames": [[3, 4]],
+                "brightness": {"amplitude": 0.2, "period_s": 1.0},
+                "noise": {"sigma": 3.0, "seed": 7},
+                "motion_blur": {"subframes": 5, "exposure": 0.8},
+            },
+        },
+    )
     assert not fx.render_frame(3).any() and not fx.render_frame(4).any() and fx.render_frame(5).any()
     i = 70  # full speed: ~3.5 cm per frame, ~4 px of image motion
     sub = fx.subframe_poses(i)
     assert np.allclose(sub[2], plain.poses_T_wc[i])  # the middle of the exposure is the ground truth
-    assert np.allclose(np.linalg.norm(sub[-1, :3, 3] - sub[0, :3, 3]),
-                       0.8 * np.linalg.norm(plain.poses_T_wc[i + 1, :3, 3] - plain.poses_T_wc[i, :3, 3]), rtol=0.05)
+    assert np.allclose(
+        np.linalg.norm(sub[-1, :3, 3] - sub[0, :3, 3]),
+        0.8 * np.linalg.norm(plain.poses_T_wc[i + 1, :3, 3] - plain.poses_T_wc[i, :3, 3]),
+        rtol=0.05,
+    )
     blurred = fx.render_view(sub)
     mean_of_views = np.mean([plain.render_view(T[None]) for T in sub], axis=0)
     assert np.abs(blurred - mean_of_views).max() < 1e-3  # motion blur = average of the sub-frame renders

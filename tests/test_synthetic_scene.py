@@ -47,7 +47,7 @@ def test_two_wall_path_is_smooth_and_always_sees_the_walls(two_wall):
     print(f"per frame: speed max {100 * step.max():.2f} cm, rotation max {turn.max():.2f} deg")
     assert step.max() < 0.05 and turn.max() < 2.0  # hand-held pace: < 5 cm and < 2 deg per frame
     cam = s.camera
-    vv, uu = np.mgrid[0:cam.height:16, 0:cam.width:16]
+    vv, uu = np.mgrid[0 : cam.height : 16, 0 : cam.width : 16]
     uv = np.stack([uu.ravel(), vv.ravel()], 1).astype(np.float64)
     uv = np.concatenate([uv, [[0, 0], [cam.width - 1, 0], [0, cam.height - 1], [cam.width - 1, cam.height - 1]]])
     wall_fraction = []
@@ -66,8 +66,10 @@ def test_first_frames_are_a_stereo_initialisation_baseline(two_wall):
     d = T[40, :3, 3] - T[0, :3, 3]
     depth = np.median(two_wall.raycast(T[0], np.array([[319.5, 239.5], [100.0, 100.0], [500.0, 400.0]]))[1])
     sideways = np.degrees(np.arccos(abs(d @ T[0, :3, 0]) / np.linalg.norm(d)))
-    print(f"frames 0-40: baseline {np.linalg.norm(d):.3f} m at depth {depth:.2f} m, {sideways:.2f} deg off the "
-          f"camera x axis, rotation {_rot_deg(T[0, :3, :3], T[40, :3, :3]):.3f} deg")
+    print(
+        f"frames 0-40: baseline {np.linalg.norm(d):.3f} m at depth {depth:.2f} m, {sideways:.2f} deg off the "
+        f"camera x axis, rotation {_rot_deg(T[0, :3, :3], T[40, :3, :3]):.3f} deg"
+    )
     assert 0.08 < np.linalg.norm(d) / depth < 0.15
     assert sideways < 2.0 and _rot_deg(T[0, :3, :3], T[40, :3, :3]) < 0.5
 
@@ -75,8 +77,10 @@ def test_first_frames_are_a_stereo_initialisation_baseline(two_wall):
 def _keys():
     up = np.array([0.0, 0.0, 1.0])
     pts = [([0, 0, 0], 0, 0.0), ([1, 0, 0], 10, 0.0), ([2, 1, 0], 25, 20.0), ([2, 3, 0], 60, 0.0)]
-    return [KeyPose(f, np.array(p, float), look_at(np.array(p, float), np.array(p, float) + [0, 1, 0], up), h)
-            for p, f, h in pts]
+    return [
+        KeyPose(f, np.array(p, float), look_at(np.array(p, float), np.array(p, float) + [0, 1, 0], up), h)
+        for p, f, h in pts
+    ]
 
 
 def test_trajectory_passes_through_keys_and_holds():
@@ -97,8 +101,10 @@ def test_trajectory_passes_through_keys_and_holds():
 
 def test_rotation_interpolation_is_smooth_and_exact_at_keys():
     up = np.array([0.0, 0.0, 1.0])
-    keys = [KeyPose(f, np.zeros(3), look_at(np.zeros(3), [np.sin(a), np.cos(a), 0.0], up))
-            for f, a in ((0, 0.0), (10, 0.3), (30, 1.2), (40, 1.5))]
+    keys = [
+        KeyPose(f, np.zeros(3), look_at(np.zeros(3), [np.sin(a), np.cos(a), 0.0], up))
+        for f, a in ((0, 0.0), (10, 0.3), (30, 1.2), (40, 1.5))
+    ]
     tr = Trajectory(keys)
     assert _rot_deg(tr.smooth_poses(np.array([10.0]))[0, :3, :3], keys[1].R_wc) < 1e-9
     eps = 1e-5
@@ -125,13 +131,13 @@ BAD_SCENES = {
     "unknown key": "extends: two_wall\ncolour: red\n",
     "missing camera": "extends: two_wall\ncamera: null\n",
     "not a rectangle": "extends: two_wall\nrectangles:\n  - {corners: [[0,0,0],[1,0,0],[1,1,0.5],[0,1,0]],"
-                       " texture: {type: constant, value: 1}}\n",
+    " texture: {type: constant, value: 1}}\n",
     "bad texture": "extends: two_wall\nrectangles:\n  - {center: [0,0,1], axes: [[1,0,0],[0,1,0]], size: [1,1],"
-                   " texture: {type: plaid}}\n",
+    " texture: {type: plaid}}\n",
     "too many frames": "extends: two_wall\nframes: 900\n",
     "keys out of order": "extends: two_wall\ntrajectory:\n  keys:\n"
-                         "    - {frame: 5, position: [0,0,0], look_at: [0,1,0]}\n"
-                         "    - {frame: 2, position: [1,0,0], look_at: [1,1,0]}\n",
+    "    - {frame: 5, position: [0,0,0], look_at: [0,1,0]}\n"
+    "    - {frame: 2, position: [1,0,0], look_at: [1,1,0]}\n",
     "unparsable": "camera: [1, 2\n",
     "extends itself": "extends: me\n",
 }

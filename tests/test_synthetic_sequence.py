@@ -12,23 +12,7 @@ from ptam.cli import main as cli_main
 from ptam.eval.tum_io import read_tum
 from ptam.synthetic import ensure_sequence, load_scene
 from ptam.synthetic.scene import Scene
-from tests.support import config
-
-TINY = """\
-camera: {model: fov, width: 80, height: 60, fx: 48.0, fy: 48.0, cx: 39.5, cy: 29.5, omega: 0.9}
-frames: 6
-fps: 10
-rectangles:
-  - {name: wall, center: [0, 0, 3], axes: [[1, 0, 0], [0, 1, 0]], size: [12, 9],
-     texture: {type: dead_leaves, seed: 3, texel: 0.02, sizes: [0.05, 1.0], detail: 2}}
-trajectory:
-  up: [0, -1, 0]
-  keys:
-    - {frame: 0, position: [0, 0, 0], look_at: [0, 0, 3]}
-    - {frame: 5, position: [0.5, 0, 0], look_at: [0.5, 0, 3]}
-render:
-  noise: {sigma: 1.0, seed: 2}
-"""
+from tests.support import TINY, config
 
 
 @pytest.fixture
@@ -114,8 +98,14 @@ def test_cli_synth_then_eval_reports_zero_error(tiny, tmp_path, monkeypatch, cap
     assert "two_wall_short" in capsys.readouterr().out.split()
     out = tmp_path / "out"
     assert cli_main(["synth", str(tiny), str(out), "--video"]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["camera.yaml", "groundtruth.txt", "rgb", "rgb.txt",
-                                                     "scene.yaml", "video.avi"]
+    assert sorted(p.name for p in out.iterdir()) == [
+        "camera.yaml",
+        "groundtruth.txt",
+        "rgb",
+        "rgb.txt",
+        "scene.yaml",
+        "video.avi",
+    ]
     capsys.readouterr()
     gt = str(out / "groundtruth.txt")
     assert cli_main(["eval", gt, gt]) == 0

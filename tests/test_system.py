@@ -36,8 +36,10 @@ def test_sync_initialises_tracks_and_maps_accurately(short, sync_runs):
     system = sync_runs[0]
     fraction, rmse, length = _score(short, system)
     snap = system.mapper.snapshot
-    print(f"tracked {fraction:.3f}, ATE {1e3 * rmse:.2f} mm over {length:.2f} m, "
-          f"{snap.n_keyframes} keyframes, {snap.n_points} points")
+    print(
+        f"tracked {fraction:.3f}, ATE {1e3 * rmse:.2f} mm over {length:.2f} m, "
+        f"{snap.n_keyframes} keyframes, {snap.n_points} points"
+    )
     assert system.stats.init_attempts >= 1 and system.mapper.initialised
     assert fraction >= 0.98
     assert rmse <= 0.001 * length

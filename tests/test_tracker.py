@@ -46,7 +46,7 @@ def _track(scene, frames, snapshot, cfg=CFG, start=0, T0=None, recovered=False):
     tracker.set_pose(se3.inv(scene.poses_T_wc[start]) if T0 is None else T0, recovered=recovered)
     results = [tracker.track(frames[i], snapshot) for i in range(start, len(frames))]
     T_wc = np.stack([r.T_wc for r in results])
-    truth = scene.poses_T_wc[start:len(frames)]
+    truth = scene.poses_T_wc[start : len(frames)]
     pos_mm = 1e3 * np.linalg.norm(T_wc[:, :3, 3] - truth[:, :3, 3], axis=1)
     rot_deg = np.degrees(np.linalg.norm(se3.log(se3.inv(T_wc) @ truth)[:, 3:], axis=1))
     return results, pos_mm, rot_deg
@@ -59,8 +59,10 @@ def clean(scene, frames, gt_map):
 
 def test_clean_sequence_every_frame_good_and_accurate(scene, clean, depth):
     results, pos_mm, rot_deg = clean
-    print(f"clean: depth {depth:.2f} m, position median {np.median(pos_mm):.2f} max {pos_mm.max():.2f} mm, "
-          f"rotation median {np.median(rot_deg):.4f} deg, found {np.median([r.n_found for r in results]):.0f}")
+    print(
+        f"clean: depth {depth:.2f} m, position median {np.median(pos_mm):.2f} max {pos_mm.max():.2f} mm, "
+        f"rotation median {np.median(rot_deg):.4f} deg, found {np.median([r.n_found for r in results]):.0f}"
+    )
     assert all(r.quality == "good" and not r.lost for r in results)
     assert np.median(pos_mm) <= 1.0 * depth
     assert pos_mm.max() <= 5.0 * depth
@@ -83,12 +85,18 @@ def test_clean_sequence_every_frame_good_and_accurate(scene, clean, depth):
 def test_noise_and_motion_blur_at_most_double_the_error(scene, frames, gt_map, clean):
     rng = np.random.default_rng(0)
     blur = np.full((1, 3), 1.0 / 3.0, np.float32)  # ~2 px of horizontal motion blur, the direction of travel
-    noisy = [np.clip(np.rint(cv2.filter2D(f.astype(np.float32), -1, blur) + rng.normal(0.0, 3.0, f.shape)), 0, 255)
-             .astype(np.uint8) for f in frames]
+    noisy = [
+        np.clip(np.rint(cv2.filter2D(f.astype(np.float32), -1, blur) + rng.normal(0.0, 3.0, f.shape)), 0, 255).astype(
+            np.uint8
+        )
+        for f in frames
+    ]
     results, pos_mm, rot_deg = _track(scene, noisy, gt_map.snapshot())
     _, pos_clean, rot_clean = clean
-    print(f"noisy: position median {np.median(pos_mm):.2f} max {pos_mm.max():.2f} mm, "
-          f"rotation median {np.median(rot_deg):.4f} deg")
+    print(
+        f"noisy: position median {np.median(pos_mm):.2f} max {pos_mm.max():.2f} mm, "
+        f"rotation median {np.median(rot_deg):.4f} deg"
+    )
     assert np.mean([r.tracked for r in results]) >= 0.99
     assert np.median(pos_mm) <= 2.0 * np.median(pos_clean)
     assert np.median(rot_deg) <= 2.0 * np.median(rot_clean)
@@ -103,8 +111,10 @@ def test_displaced_map_points_are_rejected_by_tukey(scene, frames, clean):
     m.set_points(moved, m.X[moved] + 0.3 * d / np.linalg.norm(d, axis=1, keepdims=True))
     results, pos_mm, rot_deg = _track(scene, frames, m.snapshot())
     _, pos_clean, rot_clean = clean
-    print(f"20% displaced: position median {np.median(pos_mm):.2f} max {pos_mm.max():.2f} mm, "
-          f"rotation median {np.median(rot_deg):.4f} deg")
+    print(
+        f"20% displaced: position median {np.median(pos_mm):.2f} max {pos_mm.max():.2f} mm, "
+        f"rotation median {np.median(rot_deg):.4f} deg"
+    )
     assert all(r.tracked for r in results)
     assert np.median(pos_mm) <= 2.0 * np.median(pos_clean)
     assert np.median(rot_deg) <= 2.0 * np.median(rot_clean)
@@ -127,8 +137,9 @@ def _offset_start(scene, start):
 
 def test_coarse_stage_converges_from_5cm_3deg(scene, frames, gt_map, depth):
     start = 60
-    results, pos_mm, rot_deg = _track(scene, frames[:start + 10], gt_map.snapshot(), start=start,
-                                      T0=_offset_start(scene, start), recovered=True)
+    results, pos_mm, rot_deg = _track(
+        scene, frames[: start + 10], gt_map.snapshot(), start=start, T0=_offset_start(scene, start), recovered=True
+    )
     print(f"offset start, coarse: position {pos_mm[:3].round(2)} mm, rotation {rot_deg[:3].round(3)} deg")
     assert results[0].did_coarse and results[0].measurements.coarse.sum() == 2 * CFG.tracker.coarse_points
     assert all(r.quality == "good" for r in results)
@@ -142,8 +153,9 @@ def test_without_coarse_stage_an_offset_start_is_lost(scene, frames, gt_map):
     start = 60
     # PTAM §5 alone: Agility's rotation estimator drops the motion model's translation, so the pose drifts less.
     cfg = CFG.replace(**{"tracker.coarse_enabled": False, "rotation.enabled": False})
-    results, pos_mm, rot_deg = _track(scene, frames[:start + 10], gt_map.snapshot(), cfg=cfg, start=start,
-                                      T0=_offset_start(scene, start))
+    results, pos_mm, rot_deg = _track(
+        scene, frames[: start + 10], gt_map.snapshot(), cfg=cfg, start=start, T0=_offset_start(scene, start)
+    )
     print(f"offset start, no coarse: position {pos_mm[:3].round(1)} mm, rotation {rot_deg[:3].round(2)} deg")
     assert not any(r.did_coarse for r in results)
     assert all(r.quality == "bad" for r in results)

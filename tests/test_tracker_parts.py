@@ -61,8 +61,9 @@ def test_patch_seen_from_its_source_keyframe_has_identity_template_warp():
     Xc = np.concatenate([CAM.unproject(xy0), np.ones((n, 1))], axis=1) * depth[:, None]
     X = se3.transform(se3.inv(T_kf), Xc)
     normal = -se3.inv(T_kf)[:3, 2]  # facing the source camera (PTAM §6.5)
-    right, down = patch_pixel_vectors(CAM, T_kf[None], X, np.broadcast_to(normal, (n, 3)),
-                                      np.zeros(n, np.int32), level, xyL)
+    right, down = patch_pixel_vectors(
+        CAM, T_kf[None], X, np.broadcast_to(normal, (n, 3)), np.zeros(n, np.int32), level, xyL
+    )
     A, search_level = search_warps(CAM.kernel_params(), CFG.patch, 4, T_kf, Xc, right, down)
     # One source-level pixel is 2^L level-0 pixels: det(A)/4^L = 1, searched at the source level, M = I.
     assert np.array_equal(search_level, level)
@@ -85,15 +86,28 @@ def test_patch_finder_finds_a_shifted_textured_patch():
     kf_pyr = Pyramid.build(kf_img, CFG.image)
     pyr = Pyramid.build(cur, CFG.image)
     L = 1
-    src = kf_pyr.corners[L][(kf_pyr.corners[L][:, 0] > 20) & (kf_pyr.corners[L][:, 0] < 290)
-                            & (kf_pyr.corners[L][:, 1] > 20) & (kf_pyr.corners[L][:, 1] < 210)][::7][:200]
+    src = kf_pyr.corners[L][
+        (kf_pyr.corners[L][:, 0] > 20)
+        & (kf_pyr.corners[L][:, 0] < 290)
+        & (kf_pyr.corners[L][:, 1] > 20)
+        & (kf_pyr.corners[L][:, 1] < 210)
+    ][::7][:200]
     n = len(src)
     truth0 = (src + 0.5) * 2 - 0.5 + shift
     finder = PatchFinder(CFG.patch)
     kf_images = tuple(im[None] for im in kf_pyr.levels)
-    m = finder.find(pyr, kf_images, np.zeros(n, np.int32), np.full(n, L, np.int8), src.astype(np.float64),
-                    np.broadcast_to(np.eye(2), (n, 2, 2)).copy(), np.full(n, L, np.int32),
-                    truth0 + rng.uniform(-5, 5, (n, 2)), 10.0, np.ones(n, bool))
+    m = finder.find(
+        pyr,
+        kf_images,
+        np.zeros(n, np.int32),
+        np.full(n, L, np.int8),
+        src.astype(np.float64),
+        np.broadcast_to(np.eye(2), (n, 2, 2)).copy(),
+        np.full(n, L, np.int32),
+        truth0 + rng.uniform(-5, 5, (n, 2)),
+        10.0,
+        np.ones(n, bool),
+    )
     err = np.linalg.norm(m.xy[m.found] - truth0[m.found], axis=1)
     print(f"patch finder: found {m.found.sum()}/{n}, median error {np.median(err):.3f} px (level 0)")
     assert m.attempted.all() and m.found.mean() > 0.6 and m.subpix[m.found].all()
@@ -126,7 +140,13 @@ def test_bench_tracking_prints_table_1_and_one_summary_line():
     lines = []
     res = run_tracking_benchmark(CFG, "two_wall_short", out=lines.append, frames=30)
     assert any(line.startswith("Patch search") and "9.8" in line for line in lines)
-    keys = ["tracking_total_ms_median", "tracking_total_ms_p95", "pos_err_mm_median", "rot_err_deg_median",
-            "tracked_fraction", "map_points"]
+    keys = [
+        "tracking_total_ms_median",
+        "tracking_total_ms_p95",
+        "pos_err_mm_median",
+        "rot_err_deg_median",
+        "tracked_fraction",
+        "map_points",
+    ]
     assert [kv.split("=")[0] for kv in lines[-1].split()] == keys
     assert res["tracked_fraction"] == 1.0 and res["pos_err_mm_median"] < 3.0 and res["map_points"] > 500

@@ -49,7 +49,8 @@ def recorded(tmp_path_factory):
         for name in batch.schema.names:
             if ":" in name:
                 rows.setdefault((chunk.entity_path, name), []).extend(
-                    zip(row_ids, frames, batch.column(name).to_pylist()))
+                    zip(row_ids, frames, batch.column(name).to_pylist())
+                )
     rows = {k: [(f, v) for _, f, v in sorted(r)] for k, r in rows.items()}
     return system, viewer, rows, np.array(found)
 
@@ -61,9 +62,11 @@ def last(rows, entity, component):
 def test_recording_matches_the_map_keyframes_and_trajectory(recorded):
     system, viewer, rows, _ = recorded
     snap = system.mapper.snapshot
-    print(f"viewer: {snap.n_points} points, {snap.n_keyframes} keyframes, {len(system.trajectory)} poses; "
-          f"observer in the tracker's thread: median {np.median(viewer.observe_ms) * 1e3:.0f} us, "
-          f"max {np.max(viewer.observe_ms) * 1e3:.0f} us; dropped {viewer.dropped}")
+    print(
+        f"viewer: {snap.n_points} points, {snap.n_keyframes} keyframes, {len(system.trajectory)} poses; "
+        f"observer in the tracker's thread: median {np.median(viewer.observe_ms) * 1e3:.0f} us, "
+        f"max {np.max(viewer.observe_ms) * 1e3:.0f} us; dropped {viewer.dropped}"
+    )
     assert viewer.error is None
     assert len(last(rows, "/world/points", "Points3D:positions")) == snap.n_points > 1000
     frusta = {e for (e, c) in rows if c == "Pinhole:image_from_camera" and e.startswith("/world/keyframes/")}

@@ -23,7 +23,9 @@ def _free_port() -> int:
 def _listening_addresses(port: int) -> set[str]:
     """Local addresses of TCP sockets listening on ``port`` (IPv4, from /proc/net/tcp)."""
     found = set()
-    for line in open("/proc/net/tcp").read().splitlines()[1:]:
+    with open("/proc/net/tcp") as f:
+        lines = f.read().splitlines()[1:]
+    for line in lines:
         local, state = line.split()[1], line.split()[3]
         addr, p = local.split(":")
         if int(p, 16) == port and state == "0A":

@@ -36,12 +36,13 @@ class DrawList:
     grid_alpha: float = 0.0
     crosshair: bool = False
     crosshair_locked: bool = False
-    dwell: float = 0.0                      # fraction of the dwell time spent on the aimed target, 0..1
+    dwell: float = 0.0  # fraction of the dwell time spent on the aimed target, 0..1
     text: list[str] = field(default_factory=list)
 
 
-def sphere_records(centres, radii, rotations, colours, pattern: int, p0: float = 0.0, p1: float = 0.0,
-                   specular: float = 1.0) -> np.ndarray:
+def sphere_records(
+    centres, radii, rotations, colours, pattern: int, p0: float = 0.0, p1: float = 0.0, specular: float = 1.0
+) -> np.ndarray:
     """(N, SPHERE_LEN) records: centres (N, 3), radii (N,), object→plane rotations (N, 3, 3), colours (N, 3, 3)
     (A, B, C, BGR)."""
     centres = np.asarray(centres, np.float64).reshape(-1, 3)
@@ -49,8 +50,8 @@ def sphere_records(centres, radii, rotations, colours, pattern: int, p0: float =
     rec = np.zeros((n, SPHERE_LEN))
     rec[:, 0:3] = centres
     rec[:, S_RADIUS] = radii
-    rec[:, S_ROT:S_ROT + 9] = np.asarray(rotations, np.float64).reshape(n, 9)
-    rec[:, S_COLOURS:S_COLOURS + 9] = np.asarray(colours, np.float64).reshape(n, 9)
+    rec[:, S_ROT : S_ROT + 9] = np.asarray(rotations, np.float64).reshape(n, 9)
+    rec[:, S_COLOURS : S_COLOURS + 9] = np.asarray(colours, np.float64).reshape(n, 9)
     rec[:, S_PATTERN] = pattern
     rec[:, S_P0] = p0
     rec[:, S_P1] = p1
@@ -67,6 +68,6 @@ def decal_records(centres_uv, r_in, r_out, softness, colours, alpha) -> np.ndarr
     rec[:, D_RIN] = r_in
     rec[:, D_ROUT] = r_out
     rec[:, D_SOFT] = softness
-    rec[:, D_COLOUR:D_COLOUR + 3] = np.broadcast_to(np.asarray(colours, np.float64), (m, 3))
+    rec[:, D_COLOUR : D_COLOUR + 3] = np.broadcast_to(np.asarray(colours, np.float64), (m, 3))
     rec[:, D_ALPHA] = alpha
     return rec

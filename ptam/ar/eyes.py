@@ -45,12 +45,24 @@ class Eyes:
 
     def spheres(self) -> np.ndarray:
         colours = np.array([materials.EYE_WHITE, materials.EYE_IRIS, materials.EYE_PUPIL])
-        return sphere_records(self.positions, self.radius, self.R, np.broadcast_to(colours, (4, 3, 3)), EYE,
-                              math.cos(math.radians(self.cfg.eye_pupil_deg)),
-                              math.cos(math.radians(self.cfg.eye_iris_deg)))
+        return sphere_records(
+            self.positions,
+            self.radius,
+            self.R,
+            np.broadcast_to(colours, (4, 3, 3)),
+            EYE,
+            math.cos(math.radians(self.cfg.eye_pupil_deg)),
+            math.cos(math.radians(self.cfg.eye_iris_deg)),
+        )
 
     def shadows(self) -> np.ndarray:
         c = self.cfg
         r = self.radius
-        return decal_records(self.positions[:, :2], 0.0, c.shadow_radius_rel * r, c.shadow_softness_rel * r,
-                             materials.SHADOW, c.shadow_alpha)
+        return decal_records(
+            self.positions[:, :2],
+            0.0,
+            c.shadow_radius_rel * r,
+            c.shadow_softness_rel * r,
+            materials.SHADOW,
+            c.shadow_alpha,
+        )

@@ -19,7 +19,7 @@ class Grid:
     half_cells: int
     spacing: float
     samples_per_cell: int
-    lines: np.ndarray     # (2·(2h+1), 2h·k + 1, 3) plane-frame samples
+    lines: np.ndarray  # (2·(2h+1), 2h·k + 1, 3) plane-frame samples
 
     @property
     def n_lines_per_axis(self) -> int:
@@ -47,10 +47,10 @@ def make_grid(half_cells: int, spacing: float, samples_per_cell: int) -> Grid:
 
 @dataclass(frozen=True)
 class ProjectedGrid:
-    uv: np.ndarray          # (L, S, 2) pixel positions of the samples
-    ok: np.ndarray          # (L, S) in front of the camera and within the projectable radius
-    vertex_uv: np.ndarray   # ((2h+1)², 2), as Grid.vertices
-    vertex_ok: np.ndarray   # ((2h+1)²,)
+    uv: np.ndarray  # (L, S, 2) pixel positions of the samples
+    ok: np.ndarray  # (L, S) in front of the camera and within the projectable radius
+    vertex_uv: np.ndarray  # ((2h+1)², 2), as Grid.vertices
+    vertex_ok: np.ndarray  # ((2h+1)²,)
 
 
 def project_grid(grid: Grid, cam_params: np.ndarray, T_cp: np.ndarray) -> ProjectedGrid:

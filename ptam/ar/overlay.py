@@ -126,7 +126,7 @@ class OverlayRenderer:
         rec = rec_p.copy()
         c = rec_p[:, 0:3] @ R.T + t
         rec[:, 0:3] = c
-        rec[:, S_ROT:S_ROT + 9] = (R @ rec_p[:, S_ROT:S_ROT + 9].reshape(-1, 3, 3)).reshape(-1, 9)
+        rec[:, S_ROT : S_ROT + 9] = (R @ rec_p[:, S_ROT : S_ROT + 9].reshape(-1, 3, 3)).reshape(-1, 9)
         r = rec[:, S_RADIUS]
         dist = np.linalg.norm(c, axis=1)
         outside = dist > r
@@ -142,13 +142,21 @@ class OverlayRenderer:
         e1, e2 = _orthonormal_to(np.where(visible[:, None], dirs, [[0.0, 0.0, 1.0]]))
         centre = c * np.where(visible, shrink, 0.0)[:, None]
         rho = r * np.sqrt(np.clip(shrink, 0.0, 1.0))
-        outline = centre[:, None] + rho[:, None, None] * (self._circle[None, :, :1] * e1[:, None]
-                                                          + self._circle[None, :, 1:] * e2[:, None])
+        outline = centre[:, None] + rho[:, None, None] * (
+            self._circle[None, :, :1] * e1[:, None] + self._circle[None, :, 1:] * e2[:, None]
+        )
         boxes = self._boxes(outline, visible)
         order = np.argsort(-np.where(visible, dist, -np.inf))  # back to front: rims blend over what is behind
         order = order[visible[order]]
-        draw_spheres(img, self.zbuf, self.rays, np.ascontiguousarray(rec[order]),
-                     np.ascontiguousarray(boxes[order]), R @ self.light_plane, self.shading)
+        draw_spheres(
+            img,
+            self.zbuf,
+            self.rays,
+            np.ascontiguousarray(rec[order]),
+            np.ascontiguousarray(boxes[order]),
+            R @ self.light_plane,
+            self.shading,
+        )
 
     def _draw_decals(self, img, R, t, dec: np.ndarray) -> None:
         plane = np.concatenate([t, R[:, 0], R[:, 1], R[:, 2]])
@@ -174,14 +182,35 @@ class OverlayRenderer:
                 cv2.line(img, p, q, colour, 2, cv2.LINE_AA, FIXED_POINT_SHIFT)
             if dl.dwell > 0.0:
                 r = materials.DWELL_ARC_PX * s
-                cv2.ellipse(img, (round(cx * s), round(cy * s)), (r, r), -90.0, 0.0, 360.0 * min(dl.dwell, 1.0),
-                            materials.AIM_RING_LOCKED, 2, cv2.LINE_AA, FIXED_POINT_SHIFT)
+                cv2.ellipse(
+                    img,
+                    (round(cx * s), round(cy * s)),
+                    (r, r),
+                    -90.0,
+                    0.0,
+                    360.0 * min(dl.dwell, 1.0),
+                    materials.AIM_RING_LOCKED,
+                    2,
+                    cv2.LINE_AA,
+                    FIXED_POINT_SHIFT,
+                )
         y = materials.TEXT_MARGIN_PX
         for line in dl.text:
             (w, h), base = cv2.getTextSize(line, cv2.FONT_HERSHEY_SIMPLEX, materials.FONT_SCALE, 1)
             m = materials.TEXT_MARGIN_PX // 2
-            box = img[max(y - m, 0):y + h + base + m, max(materials.TEXT_MARGIN_PX - m, 0):materials.TEXT_MARGIN_PX + w + m]
+            box = img[
+                max(y - m, 0) : y + h + base + m,
+                max(materials.TEXT_MARGIN_PX - m, 0) : materials.TEXT_MARGIN_PX + w + m,
+            ]
             box[:] = box // 2  # a darkened panel keeps the text readable on any background
-            cv2.putText(img, line, (materials.TEXT_MARGIN_PX, y + h), cv2.FONT_HERSHEY_SIMPLEX, materials.FONT_SCALE,
-                        materials.HUD_TEXT, 1, cv2.LINE_AA)
+            cv2.putText(
+                img,
+                line,
+                (materials.TEXT_MARGIN_PX, y + h),
+                cv2.FONT_HERSHEY_SIMPLEX,
+                materials.FONT_SCALE,
+                materials.HUD_TEXT,
+                1,
+                cv2.LINE_AA,
+            )
             y += h + base + 2 * m

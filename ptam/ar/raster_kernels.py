@@ -50,7 +50,7 @@ def ray_table(xy: np.ndarray) -> np.ndarray:
     step_x = np.linalg.norm(np.gradient(xy, axis=1), axis=-1)
     step_y = np.linalg.norm(np.gradient(xy, axis=0), axis=-1)
     fp = 0.5 * (step_x + step_y)
-    dd = (xy ** 2).sum(axis=-1) + 1.0
+    dd = (xy**2).sum(axis=-1) + 1.0
     return np.stack([xy[..., 0], xy[..., 1], 1.0 / dd, 1.0 / fp, fp * np.sqrt(dd)], axis=-1).astype(np.float32)
 
 
@@ -137,7 +137,7 @@ def draw_spheres(img, zbuf, rays, spheres, boxes, light, shading):
                 ci = _pattern_colour(s, mx, my, mz)
                 lam = max(nx * light[0] + ny * light[1] + nz * light[2], 0.0)
                 nh = nx * hx + ny * hy + nz * hz
-                spec = 255.0 * specular * s[S_SPEC] * nh ** shininess if nh > nh_min else 0.0
+                spec = 255.0 * specular * s[S_SPEC] * nh**shininess if nh > nh_min else 0.0
                 inten = ambient + diffuse * lam
                 if cov >= 1.0:
                     for c in range(3):
@@ -246,8 +246,9 @@ def rasterise_polylines(cov, touched, uv, ok, half_width):
     for i in range(uv.shape[0]):
         for s in range(uv.shape[1] - 1):
             if ok[i, s] and ok[i, s + 1]:
-                n = _rasterise_segment(cov, touched, n, uv[i, s, 0], uv[i, s, 1], uv[i, s + 1, 0], uv[i, s + 1, 1],
-                                       reach)
+                n = _rasterise_segment(
+                    cov, touched, n, uv[i, s, 0], uv[i, s, 1], uv[i, s + 1, 0], uv[i, s + 1, 1], reach
+                )
     return n
 
 

@@ -26,8 +26,12 @@ from ..tracking.relocaliser import Relocaliser
 from ..tracking.rotation_estimator import RotationEstimator
 
 TARGET_MS = {"rotation": 0.5, "compare": 1.0, "align": 0.5, "reloc": 1.5}
-ROW_NAMES = {"rotation": "Rotation estimate per frame", "compare": "Reloc: compare with {k} keyframes",
-             "align": "Reloc: alignment + rotation", "reloc": "Relocalisation total"}
+ROW_NAMES = {
+    "rotation": "Rotation estimate per frame",
+    "compare": "Reloc: compare with {k} keyframes",
+    "align": "Reloc: alignment + rotation",
+    "reloc": "Relocalisation total",
+}
 
 
 def _pyramid(seq, i: int, cfg) -> Pyramid:
@@ -48,8 +52,10 @@ def run_agility_benchmark(cfg, scene: str = "two_wall", out=print, keyframes: in
     """Time the rotation estimator and relocalisation; print the table and the summary line; return the numbers."""
     sc = load_scene(scene)
     if sc.n_frames < keyframes + 1:
-        raise InputError(f"bench agility: scene {scene} has {sc.n_frames} frames, fewer than {keyframes} keyframes"
-                         " and a frame to relocalise")
+        raise InputError(
+            f"bench agility: scene {scene} has {sc.n_frames} frames, fewer than {keyframes} keyframes"
+            " and a frame to relocalise"
+        )
     seq = ensure_sequence(scene, cfg.synthetic)
     out(f"building pyramids of {scene} ({sc.n_frames} frames) ...")
     pyramids = [_pyramid(seq, i, cfg) for i in range(sc.n_frames)]
@@ -83,14 +89,21 @@ def run_agility_benchmark(cfg, scene: str = "two_wall", out=print, keyframes: in
     rows["align"] = np.maximum(rows["reloc"] - rows["compare"], 0.0)
 
     n = len(kf_frames)
-    out(f"Agility timings: rotation estimator over {len(rotation)} frames of {scene}; relocalisation of "
-        f"{len(queries)} frames against {n} keyframes ({100 * np.mean(nearest):.0f}% chose one of the two nearest)")
+    out(
+        f"Agility timings: rotation estimator over {len(rotation)} frames of {scene}; relocalisation of "
+        f"{len(queries)} frames against {n} keyframes ({100 * np.mean(nearest):.0f}% chose one of the two nearest)"
+    )
     out(f"{'':<36}{'target (ms)':>12}{'median (ms)':>13}{'p95 (ms)':>10}")
     for key in ("rotation", "compare", "align", "reloc"):
         v = rows[key]
-        out(f"{ROW_NAMES[key].format(k=n):<36}{TARGET_MS[key]:>12.1f}{np.median(v):>13.3f}"
-            f"{np.percentile(v, 95):>10.3f}")
+        out(
+            f"{ROW_NAMES[key].format(k=n):<36}{TARGET_MS[key]:>12.1f}{np.median(v):>13.3f}{np.percentile(v, 95):>10.3f}"
+        )
     result = {"rotation_ms": float(np.median(rows["rotation"])), "reloc_ms_250kf": float(np.median(rows["reloc"]))}
     out(f"rotation_ms={result['rotation_ms']:.4f} reloc_ms_250kf={result['reloc_ms_250kf']:.4f}")
-    return {**result, "keyframes": n, "nearest_fraction": float(np.mean(nearest)),
-            "stage_ms_median": {k: float(np.median(v)) for k, v in rows.items()}}
+    return {
+        **result,
+        "keyframes": n,
+        "nearest_fraction": float(np.mean(nearest)),
+        "stage_ms_median": {k: float(np.median(v)) for k, v in rows.items()},
+    }

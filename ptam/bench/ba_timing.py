@@ -39,13 +39,13 @@ SEED = 2007
 CAMERA = dict(width=640, height=480, fx=384.0, fy=384.0, cx=319.5, cy=239.5, omega=0.9)
 WALL_DEPTH_M = 3.0
 WALL_RELIEF_M = 0.5
-KEYFRAME_SPACING_REL = 0.1            # PTAM §6.2: a new keyframe after moving ~0.1 × scene depth
+KEYFRAME_SPACING_REL = 0.1  # PTAM §6.2: a new keyframe after moving ~0.1 × scene depth
 ORIENTATION_JITTER_DEG = 3.0
 LEVEL_FRACTIONS = (0.5, 0.3, 0.15, 0.05)
 NOISE_PX = 1.0
 OUTLIER_FRACTION = 0.05
-OUTLIER_SIGMAS = (12.0, 40.0)         # gross: far outside Tukey's cut-off (~8σ)
-POSE_PERTURBATION = (0.02, 1.0)       # m, degrees
+OUTLIER_SIGMAS = (12.0, 40.0)  # gross: far outside Tukey's cut-off (~8σ)
+POSE_PERTURBATION = (0.02, 1.0)  # m, degrees
 POINT_PERTURBATION_M = 0.05
 # Local BA's start: a new keyframe as accurate as the tracker makes it (~0.5 px) and new points with the
 # depth error of a short-baseline triangulation (§6.2), along the ray from the new keyframe.
@@ -56,24 +56,29 @@ NEW_POINT_DEPTH_ERROR_M = 0.05
 @dataclass(frozen=True)
 class SyntheticBA:
     camera: FovCamera
-    poses_true: np.ndarray   # (N, 4, 4) T_cw
+    poses_true: np.ndarray  # (N, 4, 4) T_cw
     points_true: np.ndarray  # (M, 3)
-    poses_init: np.ndarray   # poses_true perturbed
+    poses_init: np.ndarray  # poses_true perturbed
     points_init: np.ndarray  # points_true perturbed
-    point_pair: np.ndarray   # (M,) the keyframe pair (i, i + 1) that created point j, as i
+    point_pair: np.ndarray  # (M,) the keyframe pair (i, i + 1) that created point j, as i
     meas_kf: np.ndarray
     meas_pt: np.ndarray
     meas_xy: np.ndarray
     meas_level: np.ndarray
-    gross: np.ndarray        # (K,) bool, the gross outliers
+    gross: np.ndarray  # (K,) bool, the gross outliers
 
 
 def perturb_poses(T: np.ndarray, rng, metres: float, degrees: float) -> np.ndarray:
     """exp(μ)·T with a translation of exactly ``metres`` and a rotation of ``degrees`` in random directions."""
     v = rng.normal(size=(len(T), 3))
     w = rng.normal(size=(len(T), 3))
-    mu = np.concatenate([metres * v / np.linalg.norm(v, axis=1, keepdims=True),
-                         np.radians(degrees) * w / np.linalg.norm(w, axis=1, keepdims=True)], axis=1)
+    mu = np.concatenate(
+        [
+            metres * v / np.linalg.norm(v, axis=1, keepdims=True),
+            np.radians(degrees) * w / np.linalg.norm(w, axis=1, keepdims=True),
+        ],
+        axis=1,
+    )
     return se3.exp(mu) @ T
 
 
@@ -128,15 +133,30 @@ def _observe(cam, T, X, point_pair, rng, outlier_fraction, noise_px, level_fract
     ang = rng.uniform(0.0, 2.0 * np.pi, k)
     mag = sigma * rng.uniform(*OUTLIER_SIGMAS, k)
     xy[gross] += (mag[:, None] * np.stack([np.cos(ang), np.sin(ang)], 1))[gross]
-    return SyntheticBA(camera=cam, poses_true=T, points_true=X,
-                       poses_init=perturb_poses(T, rng, *POSE_PERTURBATION),
-                       points_init=perturb_points(X, rng, POINT_PERTURBATION_M), point_pair=point_pair,
-                       meas_kf=meas_kf, meas_pt=meas_pt, meas_xy=xy, meas_level=level, gross=gross)
+    return SyntheticBA(
+        camera=cam,
+        poses_true=T,
+        points_true=X,
+        poses_init=perturb_poses(T, rng, *POSE_PERTURBATION),
+        points_init=perturb_points(X, rng, POINT_PERTURBATION_M),
+        point_pair=point_pair,
+        meas_kf=meas_kf,
+        meas_pt=meas_pt,
+        meas_xy=xy,
+        meas_level=level,
+        gross=gross,
+    )
 
 
-def synthetic_ba_problem(n_keyframes: int, n_points: int, seed: int, camera: FovCamera | None = None,
-                         outlier_fraction: float = OUTLIER_FRACTION, noise_px: float = NOISE_PX,
-                         level_fractions=LEVEL_FRACTIONS) -> SyntheticBA:
+def synthetic_ba_problem(
+    n_keyframes: int,
+    n_points: int,
+    seed: int,
+    camera: FovCamera | None = None,
+    outlier_fraction: float = OUTLIER_FRACTION,
+    noise_px: float = NOISE_PX,
+    level_fractions=LEVEL_FRACTIONS,
+) -> SyntheticBA:
     """An exploring map: keyframes along a wall, points spread evenly over the consecutive keyframe pairs."""
     rng = np.random.default_rng(seed)
     cam = camera or FovCamera(**CAMERA)
@@ -182,8 +202,9 @@ def _local_ba(bundle: Bundle, prob: SyntheticBA, poses, points, rng):
     fixed = np.zeros(len(poses), bool)
     fixed[0] = True
     t, c = time.perf_counter(), time.thread_time()
-    res, sets = local_bundle_adjust(bundle, poses, points, prob.meas_kf, prob.meas_pt, prob.meas_xy,
-                                    prob.meas_level, newest, fixed_keyframes=fixed)
+    res, sets = local_bundle_adjust(
+        bundle, poses, points, prob.meas_kf, prob.meas_pt, prob.meas_xy, prob.meas_level, newest, fixed_keyframes=fixed
+    )
     return res, sets, time.perf_counter() - t, time.thread_time() - c
 
 
@@ -204,28 +225,63 @@ def run_ba_benchmark(cfg, out=print) -> dict:
     _local_ba(bundle, warm, g.poses, g.points, np.random.default_rng(SEED))
 
     rows = []
-    out(f"{'KFs':>4} {'points':>6} {'meas':>7} | {'global ms':>9} {'cpu ms':>8} {'its':>3} {'conv':>4} | "
-        f"{'local ms':>8} {'cpu ms':>7} {'its':>4} {'|X|':>3} {'|Y|':>3} {'|Z|':>5}")
+    out(
+        f"{'KFs':>4} {'points':>6} {'meas':>7} | {'global ms':>9} {'cpu ms':>8} {'its':>3} {'conv':>4} | "
+        f"{'local ms':>8} {'cpu ms':>7} {'its':>4} {'|X|':>3} {'|Y|':>3} {'|Z|':>5}"
+    )
     for n_kf in BENCH_KEYFRAMES:
-        prob = synthetic_ba_problem(n_kf, POINTS_PER_PAIR * (n_kf - 1), SEED + n_kf)
-        g, t_g, c_g = _global_ba(bundle, prob)
-        rng = np.random.default_rng(SEED)
-        locs = [_local_ba(bundle, prob, g.poses, g.points, rng) for _ in range(LOCAL_REPEATS)]
-        s = locs[0][1]
-        row = dict(keyframes=n_kf, points=len(prob.points_true), measurements=len(prob.meas_kf),
-                   global_ms=1e3 * t_g, global_cpu_ms=1e3 * c_g, global_iterations=g.iterations,
-                   global_converged=g.converged, local_ms=1e3 * float(np.mean([x[2] for x in locs])),
-                   local_cpu_ms=1e3 * float(np.mean([x[3] for x in locs])),
-                   local_iterations=float(np.mean([x[0].iterations for x in locs])),
-                   global_phases=_phase_split([g]), local_phases=_phase_split([x[0] for x in locs]))
-        rows.append(row)
-        out(f"{n_kf:>4} {row['points']:>6} {row['measurements']:>7} | {row['global_ms']:>9.1f} "
-            f"{row['global_cpu_ms']:>8.1f} {g.iterations:>3} {'yes' if g.converged else 'no':>4} | "
-            f"{row['local_ms']:>8.1f} {row['local_cpu_ms']:>7.1f} {row['local_iterations']:>4.1f} "
-            f"{int(s.adjust.sum()):>3} {int(s.fixed.sum()):>3} {int(s.points.sum()):>5}")
+        rows.append(_bench_row(bundle, n_kf, out))
     busy = sum(r["global_cpu_ms"] + r["local_cpu_ms"] for r in rows) / sum(r["global_ms"] + r["local_ms"] for r in rows)
     if busy < 0.9:
         out(f"note: the solver thread got only {100 * busy:.0f}% of a core (other processes); wall times are inflated")
+    means = _table2(rows, out)
+    out("")
+    out("where the time goes (share of total):")
+    for r in rows:
+        out(f"  {r['keyframes']:>3} KFs  global: {r['global_phases']}")
+        out(f"  {'':>3}      local:  {r['local_phases']}")
+    result = {
+        "local_ba_ms_2_49": means["local"][0],
+        "global_ba_ms_2_49": means["global"][0],
+        "global_ba_ms_50_99": means["global"][1],
+        "global_ba_ms_100_149": means["global"][2],
+    }
+    out(" ".join(f"{k}={v:.1f}" for k, v in result.items()))
+    return {**result, "local_ba_ms_50_99": means["local"][1], "local_ba_ms_100_149": means["local"][2], "rows": rows}
+
+
+def _bench_row(bundle: Bundle, n_kf: int, out) -> dict:
+    """One map size: a global BA from perturbed poses and points, then ``LOCAL_REPEATS`` local BAs."""
+    prob = synthetic_ba_problem(n_kf, POINTS_PER_PAIR * (n_kf - 1), SEED + n_kf)
+    g, t_g, c_g = _global_ba(bundle, prob)
+    rng = np.random.default_rng(SEED)
+    locs = [_local_ba(bundle, prob, g.poses, g.points, rng) for _ in range(LOCAL_REPEATS)]
+    s = locs[0][1]
+    row = dict(
+        keyframes=n_kf,
+        points=len(prob.points_true),
+        measurements=len(prob.meas_kf),
+        global_ms=1e3 * t_g,
+        global_cpu_ms=1e3 * c_g,
+        global_iterations=g.iterations,
+        global_converged=g.converged,
+        local_ms=1e3 * float(np.mean([x[2] for x in locs])),
+        local_cpu_ms=1e3 * float(np.mean([x[3] for x in locs])),
+        local_iterations=float(np.mean([x[0].iterations for x in locs])),
+        global_phases=_phase_split([g]),
+        local_phases=_phase_split([x[0] for x in locs]),
+    )
+    out(
+        f"{n_kf:>4} {row['points']:>6} {row['measurements']:>7} | {row['global_ms']:>9.1f} "
+        f"{row['global_cpu_ms']:>8.1f} {g.iterations:>3} {'yes' if g.converged else 'no':>4} | "
+        f"{row['local_ms']:>8.1f} {row['local_cpu_ms']:>7.1f} {row['local_iterations']:>4.1f} "
+        f"{int(s.adjust.sum()):>3} {int(s.fixed.sum()):>3} {int(s.points.sum()):>5}"
+    )
+    return row
+
+
+def _table2(rows: list[dict], out) -> dict:
+    """PTAM Table 2's buckets: mean local and global BA times measured here beside the paper's."""
 
     def bucket_mean(key, lo, hi):
         v = [r[key] for r in rows if lo <= r["keyframes"] <= hi]
@@ -236,15 +292,8 @@ def run_ba_benchmark(cfg, out=print) -> dict:
     out("PTAM Table 2, bundle adjustment mean times (ms): measured here / paper")
     out(f"{'keyframes':<10}" + "".join(f"{f'{lo}-{hi}':>20}" for lo, hi in BUCKETS))
     for kind in ("local", "global"):
-        out(f"{kind + ' BA':<10}" + "".join(f"{f'{m:.0f} / {p:.0f}':>20}"
-                                             for m, p in zip(means[kind], PTAM_TABLE2_MS[kind])))
-    out("")
-    out("where the time goes (share of total):")
-    for r in rows:
-        out(f"  {r['keyframes']:>3} KFs  global: {r['global_phases']}")
-        out(f"  {'':>3}      local:  {r['local_phases']}")
-    result = {"local_ba_ms_2_49": means["local"][0], "global_ba_ms_2_49": means["global"][0],
-              "global_ba_ms_50_99": means["global"][1], "global_ba_ms_100_149": means["global"][2]}
-    out(" ".join(f"{k}={v:.1f}" for k, v in result.items()))
-    return {**result, "local_ba_ms_50_99": means["local"][1], "local_ba_ms_100_149": means["local"][2],
-            "rows": rows}
+        out(
+            f"{kind + ' BA':<10}"
+            + "".join(f"{f'{m:.0f} / {p:.0f}':>20}" for m, p in zip(means[kind], PTAM_TABLE2_MS[kind]))
+        )
+    return means

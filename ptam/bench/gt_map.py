@@ -44,8 +44,9 @@ def build_gt_map(scene, cfg, kf_every: int | None = None, max_points: int | None
         new_xy, new_level, new_X, depths = _pick_points(scene, cfg, pyr, T_wc, X, level_of)
         if not depths.size:
             raise InputError(f"gt map: frame {f} sees no textured scene surface")
-        keyframes.append(KeyFrame(len(keyframes), pyr, *KeyFrame.depth_stats(depths),
-                                  timestamp=float(scene.timestamps[f])))
+        keyframes.append(
+            KeyFrame(len(keyframes), pyr, *KeyFrame.depth_stats(depths), timestamp=float(scene.timestamps[f]))
+        )
         poses.append(se3.inv(T_wc))
         X = np.concatenate([X, new_X])
         xy_of = np.concatenate([xy_of, new_xy])

@@ -49,23 +49,39 @@ def run_mapping_benchmark(cfg, scene: str = "two_wall", out=print) -> dict:
     out(f"{'keyframes':<28}" + "".join(f"{f'{lo}-{hi}':>22}" for lo, hi in BUCKETS))
     for kind in ("local", "global"):
         means = _bucket_means(st[f"{kind}_ba"])
-        cells = "".join(f"{f'{m:.0f} ({k}) / {p:.0f}':>22}" if k else f"{f'- / {p:.0f}':>22}"
-                        for (m, k), p in zip(means, PTAM_TABLE2_MS[kind]))
+        cells = "".join(
+            f"{f'{m:.0f} ({k}) / {p:.0f}':>22}" if k else f"{f'- / {p:.0f}':>22}"
+            for (m, k), p in zip(means, PTAM_TABLE2_MS[kind])
+        )
         out(f"{kind + ' BA, here / PTAM':<28}{cells}")
     t_sync = float(np.median(sync.stats.track_ms))
     t_async = float(np.median(asyn.stats.track_ms))
     out("")
-    out(f"ATE after Sim(3): sync {ate_mm:.2f} mm ({100 * fraction:.1f}% tracked), async {ate_async:.2f} mm "
-        f"({100 * fraction_async:.1f}% tracked); PTAM §7.3: {PAPER_ATE_MM:g} mm")
-    out(f"tracker median ms per frame: sync {t_sync:.2f}, async {t_async:.2f} "
-        f"({100 * (t_async / t_sync - 1):+.0f}% with the mapper running beside it)")
+    out(
+        f"ATE after Sim(3): sync {ate_mm:.2f} mm ({100 * fraction:.1f}% tracked), async {ate_async:.2f} mm "
+        f"({100 * fraction_async:.1f}% tracked); PTAM §7.3: {PAPER_ATE_MM:g} mm"
+    )
+    out(
+        f"tracker median ms per frame: sync {t_sync:.2f}, async {t_async:.2f} "
+        f"({100 * (t_async / t_sync - 1):+.0f}% with the mapper running beside it)"
+    )
     local = [m for _, m, _ in st["local_ba"]]
     glob = [m for _, m, _ in st["global_ba"]]
-    res = {"ate_mm": ate_mm, "tracked_fraction": fraction, "keyframes": snap.n_keyframes, "points": snap.n_points,
-           "local_ba_ms_mean": float(np.mean(local)) if local else float("nan"),
-           "global_ba_ms_mean": float(np.mean(glob)) if glob else float("nan"), "track_ms_median": t_sync,
-           "track_ms_median_async": t_async, "ate_mm_async": ate_async, "tracked_fraction_async": fraction_async}
-    out(f"ate_mm={res['ate_mm']:.3f} tracked_fraction={res['tracked_fraction']:.4f} keyframes={res['keyframes']} "
+    res = {
+        "ate_mm": ate_mm,
+        "tracked_fraction": fraction,
+        "keyframes": snap.n_keyframes,
+        "points": snap.n_points,
+        "local_ba_ms_mean": float(np.mean(local)) if local else float("nan"),
+        "global_ba_ms_mean": float(np.mean(glob)) if glob else float("nan"),
+        "track_ms_median": t_sync,
+        "track_ms_median_async": t_async,
+        "ate_mm_async": ate_async,
+        "tracked_fraction_async": fraction_async,
+    }
+    out(
+        f"ate_mm={res['ate_mm']:.3f} tracked_fraction={res['tracked_fraction']:.4f} keyframes={res['keyframes']} "
         f"points={res['points']} local_ba_ms_mean={res['local_ba_ms_mean']:.1f} "
-        f"global_ba_ms_mean={res['global_ba_ms_mean']:.1f} track_ms_median={res['track_ms_median']:.2f}")
+        f"global_ba_ms_mean={res['global_ba_ms_mean']:.1f} track_ms_median={res['track_ms_median']:.2f}"
+    )
     return res

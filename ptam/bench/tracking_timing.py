@@ -21,10 +21,20 @@ from ..tracking.tracker import Tracker
 from .gt_map import build_gt_map
 
 # PTAM Table 1, ms per frame (Core 2 Duo 2.66 GHz, M = 4000).
-PTAM_TABLE1_MS = {"keyframe_preparation": 2.2, "feature_projection": 3.5, "patch_search": 9.8,
-                  "pose_update": 3.7, "total": 19.2}
-STAGE_NAMES = {"keyframe_preparation": "Keyframe preparation", "feature_projection": "Feature projection",
-               "patch_search": "Patch search", "pose_update": "Iterative pose update", "total": "Total"}
+PTAM_TABLE1_MS = {
+    "keyframe_preparation": 2.2,
+    "feature_projection": 3.5,
+    "patch_search": 9.8,
+    "pose_update": 3.7,
+    "total": 19.2,
+}
+STAGE_NAMES = {
+    "keyframe_preparation": "Keyframe preparation",
+    "feature_projection": "Feature projection",
+    "patch_search": "Patch search",
+    "pose_update": "Iterative pose update",
+    "total": "Total",
+}
 
 
 def _load(seq, i: int) -> np.ndarray:
@@ -67,14 +77,21 @@ def run_tracking_benchmark(cfg, scene: str = "two_wall", out=print, frames: int 
     med = {k: float(np.median(v)) for k, v in stages.items()}
     p95 = {k: float(np.percentile(v, 95)) for k, v in stages.items()}
     found = np.array(found)
-    out(f"PTAM Table 1: tracking timings, {scene} frames 0-{n - 1}, map of {snapshot.n_points} points in "
+    out(
+        f"PTAM Table 1: tracking timings, {scene} frames 0-{n - 1}, map of {snapshot.n_points} points in "
         f"{snapshot.n_keyframes} keyframes, up to {cfg.tracker.max_patches} patches per frame "
-        f"(median {np.median(found[:, 0]):.0f} found of {np.median(found[:, 1]):.0f} attempted)")
+        f"(median {np.median(found[:, 0]):.0f} found of {np.median(found[:, 1]):.0f} attempted)"
+    )
     out(f"{'stage':<24}{'PTAM (ms)':>10}{'median (ms)':>13}{'p95 (ms)':>10}")
     for k, name in STAGE_NAMES.items():
         out(f"{name:<24}{PTAM_TABLE1_MS[k]:>10.1f}{med[k]:>13.2f}{p95[k]:>10.2f}")
-    result = dict(tracking_total_ms_median=med["total"], tracking_total_ms_p95=p95["total"],
-                  pos_err_mm_median=float(np.median(pos_mm)), rot_err_deg_median=float(np.median(rot_deg)),
-                  tracked_fraction=float(np.mean(tracked)), map_points=int(snapshot.n_points))
+    result = dict(
+        tracking_total_ms_median=med["total"],
+        tracking_total_ms_p95=p95["total"],
+        pos_err_mm_median=float(np.median(pos_mm)),
+        rot_err_deg_median=float(np.median(rot_deg)),
+        tracked_fraction=float(np.mean(tracked)),
+        map_points=int(snapshot.n_points),
+    )
     out(" ".join(f"{k}={v:.4f}" if isinstance(v, float) else f"{k}={v}" for k, v in result.items()))
     return {**result, "stage_ms_median": med, "stage_ms_p95": p95}

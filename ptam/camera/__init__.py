@@ -6,5 +6,13 @@ from .model import MODEL_IDS, CameraModel
 from .pinhole import PinholeCamera
 from .radtan import RadTanCamera
 
-__all__ = ["CameraModel", "MODEL_IDS", "FovCamera", "PinholeCamera", "RadTanCamera",
-           "load_camera", "save_camera", "camera_from_dict"]
+__all__ = [
+    "CameraModel",
+    "MODEL_IDS",
+    "FovCamera",
+    "PinholeCamera",
+    "RadTanCamera",
+    "load_camera",
+    "save_camera",
+    "camera_from_dict",
+]

@@ -25,13 +25,14 @@ from scipy.sparse import csr_matrix
 from ..config import CalibrateConfig
 from ..errors import InputError, PtamError
 from ..geometry import se3, so3
+from ..vocabulary import LensModel
 from .camera_file import camera_from_dict
 from .fov import FovCamera
 from .model import CameraModel
 from .pinhole import PinholeCamera
 from .radtan import RadTanCamera
 
-MODELS = ("fov", "radtan", "pinhole")
+MODELS = tuple(LensModel)
 _BAD_RESIDUAL = 1e6  # px, stands in for projections of points a trial step put behind the camera
 _OMEGA_BOUNDS = (1e-3, 3.0)  # the FOV model needs 0 < ω < π; 3.0 is already a 170° lens
 
@@ -55,15 +56,16 @@ class CalibrationResult:
 def make_camera(model: str, size: tuple[int, int], p: np.ndarray) -> CameraModel:
     """Camera from the parameter vector [fx, fy, cx, cy, distortion...]."""
     w, h = size
-    if model == "fov":
+    if model == LensModel.FOV:
         return FovCamera(w, h, *p[:5])
-    if model == "radtan":
+    if model == LensModel.RADTAN:
         return RadTanCamera(w, h, *p[:9])
     return PinholeCamera(w, h, *p[:4])
 
 
-def project_views(model: str, size: tuple[int, int], intr: np.ndarray, poses: np.ndarray,
-                  points: np.ndarray) -> np.ndarray:
+def project_views(
+    model: str, size: tuple[int, int], intr: np.ndarray, poses: np.ndarray, points: np.ndarray
+) -> np.ndarray:
     """Pixels (V, N, 2) of board ``points`` (N, 3) under poses (V, 6) = (rotation vector, translation)."""
     R = so3.exp(poses[:, :3])
     Xc = np.einsum("vij,nj->vni", R, points) + poses[:, None, 3:]
@@ -72,14 +74,15 @@ def project_views(model: str, size: tuple[int, int], intr: np.ndarray, poses: np
 
 def view_rms(residuals: np.ndarray) -> np.ndarray:
     """RMS of the 2-D corner errors per view, (V, N, 2) -> (V,)."""
-    return np.sqrt(np.mean(np.sum(residuals ** 2, axis=-1), axis=-1))
+    return np.sqrt(np.mean(np.sum(residuals**2, axis=-1), axis=-1))
 
 
 _DIST_STEP = 1e-6  # relative central-difference step for the distortion parameters' derivatives
 
 
-def jacobian(model: str, size: tuple[int, int], intr: np.ndarray, poses: np.ndarray,
-             points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def jacobian(
+    model: str, size: tuple[int, int], intr: np.ndarray, poses: np.ndarray, points: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """∂pixels/∂intrinsics (V, N, 2, K) and ∂pixels/∂pose (V, N, 2, 6) of :func:`project_views`.
 
     Poses and fx, fy, cx, cy are analytic (the camera's ``project_jacobian`` and the SO(3) left Jacobian of
@@ -108,9 +111,17 @@ def jacobian(model: str, size: tuple[int, int], intr: np.ndarray, poses: np.ndar
     return J_intr, J_pose
 
 
-def fit(model: str, size: tuple[int, int], intr0: np.ndarray, poses0: np.ndarray, points: np.ndarray,
-        observed: np.ndarray, cfg: CalibrateConfig, free: np.ndarray | None = None,
-        max_nfev: int | None = None) -> tuple[np.ndarray, np.ndarray, float]:
+def fit(
+    model: str,
+    size: tuple[int, int],
+    intr0: np.ndarray,
+    poses0: np.ndarray,
+    points: np.ndarray,
+    observed: np.ndarray,
+    cfg: CalibrateConfig,
+    free: np.ndarray | None = None,
+    max_nfev: int | None = None,
+) -> tuple[np.ndarray, np.ndarray, float]:
     """Joint fit of the intrinsics marked ``free`` (default all) and every pose; returns (intrinsics, poses,
     final robust cost)."""
     intr0 = np.asarray(intr0, dtype=np.float64)
@@ -130,12 +141,7 @@ def fit(model: str, size: tuple[int, int], intr0: np.ndarray, poses0: np.ndarray
         # A trial step that throws points behind the camera must look bad, not crash the solver.
         return np.where(np.isfinite(r), r, _BAD_RESIDUAL)
 
-    # Each view's rows depend on the intrinsics and on its own six pose parameters only: a sparse Jacobian
-    # (dense intrinsic columns, block-diagonal pose columns), solved by LSMR inside the trust region.
-    r_idx = np.arange(V * rows)
-    pose_cols = n_free + 6 * np.repeat(np.arange(V), rows)[:, None] + np.arange(6)
-    cols = np.concatenate([np.broadcast_to(np.arange(n_free), (V * rows, n_free)), pose_cols], axis=1).ravel()
-    rows_idx = np.repeat(r_idx, n_free + 6)
+    rows_idx, cols = _jacobian_pattern(V, rows, n_free)
 
     def jac(x):
         intr, poses = unpack(x)
@@ -145,34 +151,59 @@ def fit(model: str, size: tuple[int, int], intr0: np.ndarray, poses0: np.ndarray
         vals = np.where(np.isfinite(vals), vals, 0.0).ravel()
         return csr_matrix((vals, (rows_idx, cols)), shape=(V * rows, n_free + 6 * V))
 
-    lo = np.full(n_free + 6 * V, -np.inf)
-    hi = np.full(n_free + 6 * V, np.inf)
     x0 = np.concatenate([intr0[free], np.asarray(poses0, dtype=np.float64).ravel()])
-    if model == "fov" and free[4]:
-        k = int(free[:4].sum())
-        lo[k], hi[k] = _OMEGA_BOUNDS
-        x0[k] = np.clip(x0[k], *_OMEGA_BOUNDS)
-    sol = least_squares(residuals, x0, jac=jac, bounds=(lo, hi), method="trf", tr_solver="lsmr", loss=cfg.loss,
-                        f_scale=cfg.loss_scale_px, x_scale="jac", max_nfev=max_nfev or cfg.max_nfev)
+    lo, hi = _bounds(model, free, x0)
+    sol = least_squares(
+        residuals,
+        x0,
+        jac=jac,
+        bounds=(lo, hi),
+        method="trf",
+        tr_solver="lsmr",
+        loss=cfg.loss,
+        f_scale=cfg.loss_scale_px,
+        x_scale="jac",
+        max_nfev=max_nfev or cfg.max_nfev,
+    )
     intr, poses = unpack(sol.x)
     return intr, poses, float(sol.cost)
 
 
-def _opencv_init(model: str, size: tuple[int, int], points: np.ndarray,
-                 observed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _jacobian_pattern(V: int, rows: int, n_free: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each view's rows depend on the intrinsics and on its own six pose parameters only: a sparse Jacobian
+    (dense intrinsic columns, block-diagonal pose columns), solved by LSMR inside the trust region."""
+    r_idx = np.arange(V * rows)
+    pose_cols = n_free + 6 * np.repeat(np.arange(V), rows)[:, None] + np.arange(6)
+    cols = np.concatenate([np.broadcast_to(np.arange(n_free), (V * rows, n_free)), pose_cols], axis=1).ravel()
+    return np.repeat(r_idx, n_free + 6), cols
+
+
+def _bounds(model: str, free: np.ndarray, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """No bounds but on the FOV model's ω (PTAM eq. 3-5 need 0 < ω < π); clips ``x0`` into them."""
+    lo, hi = np.full(len(x0), -np.inf), np.full(len(x0), np.inf)
+    if model == LensModel.FOV and free[4]:
+        k = int(free[:4].sum())
+        lo[k], hi[k] = _OMEGA_BOUNDS
+        x0[k] = np.clip(x0[k], *_OMEGA_BOUNDS)
+    return lo, hi
+
+
+def _opencv_init(
+    model: str, size: tuple[int, int], points: np.ndarray, observed: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Zhang's closed form + LM from ``cv2.calibrateCamera``: intrinsics vector and poses (V, 6)."""
     obj = [points.astype(np.float32)] * len(observed)
     img = [o.reshape(-1, 1, 2).astype(np.float32) for o in observed]
     flags = 0
     if model != "radtan":
-        flags = (cv2.CALIB_ZERO_TANGENT_DIST | cv2.CALIB_FIX_K1 | cv2.CALIB_FIX_K2 | cv2.CALIB_FIX_K3)
+        flags = cv2.CALIB_ZERO_TANGENT_DIST | cv2.CALIB_FIX_K1 | cv2.CALIB_FIX_K2 | cv2.CALIB_FIX_K3
     try:
         _, K, dist, rvecs, tvecs = cv2.calibrateCamera(obj, img, tuple(size), None, None, flags=flags)
     except cv2.error as e:
         raise PtamError(f"calibration failed in OpenCV's initialisation: {str(e).strip().splitlines()[-1]}") from None
     poses = np.concatenate([np.asarray(rvecs).reshape(-1, 3), np.asarray(tvecs).reshape(-1, 3)], axis=1)
     intr = [K[0, 0], K[1, 1], K[0, 2], K[1, 2]]
-    if model == "radtan":
+    if model == LensModel.RADTAN:
         intr += list(np.ravel(dist)[:5])
     return np.array(intr, dtype=np.float64), poses
 
@@ -180,7 +211,7 @@ def _opencv_init(model: str, size: tuple[int, int], points: np.ndarray,
 def _spread_subset(observed: np.ndarray, n: int) -> np.ndarray:
     """Indices of ``n`` views chosen by farthest-point sampling of their corner sets."""
     V = len(observed)
-    if V <= n:
+    if n >= V:
         return np.arange(V)
     flat = observed.reshape(V, -1)
     chosen = [int(np.argmax(np.linalg.norm(flat - flat.mean(0), axis=1)))]
@@ -199,12 +230,22 @@ def _fov_init(size, points, observed, cfg: CalibrateConfig) -> tuple[np.ndarray,
     sub = _spread_subset(observed, cfg.omega_search_views)
     first, last, count = cfg.omega_search
     free = np.array([True, True, True, True, False])
-    best = None
+    best: tuple[float, np.ndarray] | None = None
     for omega in np.linspace(first, last, int(count)):
-        intr, poses, cost = fit("fov", size, np.append(intr_p, omega), poses_p[sub], points, observed[sub], cfg,
-                                free=free, max_nfev=cfg.omega_search_nfev)
+        intr, poses, cost = fit(
+            "fov",
+            size,
+            np.append(intr_p, omega),
+            poses_p[sub],
+            points,
+            observed[sub],
+            cfg,
+            free=free,
+            max_nfev=cfg.omega_search_nfev,
+        )
         if best is None or cost < best[0]:
             best = (cost, intr)
+    assert best is not None  # the loop runs at least once
     intr = best[1]
     # Re-seed every pose under the chosen intrinsics: PnP on the undistorted corners is exact for the model.
     cam = make_camera("fov", size, intr)
@@ -216,23 +257,27 @@ def _fov_init(size, points, observed, cfg: CalibrateConfig) -> tuple[np.ndarray,
     return intr, poses
 
 
-def initialise(model: str, size: tuple[int, int], points: np.ndarray, observed: np.ndarray,
-               cfg: CalibrateConfig) -> tuple[np.ndarray, np.ndarray]:
-    if model == "fov":
+def initialise(
+    model: str, size: tuple[int, int], points: np.ndarray, observed: np.ndarray, cfg: CalibrateConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    if model == LensModel.FOV:
         return _fov_init(size, points, observed, cfg)
     return _opencv_init(model, size, points, observed)
 
 
-def calibrate(model: str, size: tuple[int, int], points: np.ndarray, observed: np.ndarray,
-              cfg: CalibrateConfig) -> CalibrationResult:
+def calibrate(
+    model: str, size: tuple[int, int], points: np.ndarray, observed: np.ndarray, cfg: CalibrateConfig
+) -> CalibrationResult:
     """Fit ``model`` to board ``points`` (N, 3) seen as ``observed`` (V, N, 2) pixels in ``size`` images."""
     if model not in MODELS:
         raise InputError(f"unknown camera model '{model}' (expected one of {', '.join(MODELS)})")
     observed = np.asarray(observed, dtype=np.float64)
     V = len(observed)
-    if V < cfg.min_views:
-        raise InputError(f"only {V} usable chessboard views, need at least {cfg.min_views}: show the board in more "
-                         "positions and tilts")
+    if cfg.min_views > V:
+        raise InputError(
+            f"only {V} usable chessboard views, need at least {cfg.min_views}: show the board in more "
+            "positions and tilts"
+        )
     intr, poses = initialise(model, size, points, observed, cfg)
     used = np.ones(V, dtype=bool)
     for _ in range(cfg.max_refits + 1):
@@ -246,8 +291,9 @@ def calibrate(model: str, size: tuple[int, int], points: np.ndarray, observed: n
         used &= ~bad
     # Dropped views' poses were frozen during refits; refit them alone so their reported RMS is meaningful.
     for v in np.nonzero(~used)[0]:
-        _, pv, _ = fit(model, size, intr, poses[v:v + 1], points, observed[v:v + 1], cfg,
-                       free=np.zeros(len(intr), dtype=bool))
+        _, pv, _ = fit(
+            model, size, intr, poses[v : v + 1], points, observed[v : v + 1], cfg, free=np.zeros(len(intr), dtype=bool)
+        )
         poses[v] = pv[0]
     rms = view_rms(project_views(model, size, intr, poses, points) - observed)
     try:

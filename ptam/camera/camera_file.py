@@ -24,6 +24,7 @@ import os
 import yaml
 
 from ..errors import InputError
+from ..vocabulary import LensModel
 from .fov import FovCamera
 from .model import CameraModel
 from .pinhole import PinholeCamera
@@ -71,7 +72,7 @@ def camera_from_dict(d: dict, where: str = "camera") -> CameraModel:
         raise InputError(f"{where}: focal lengths must be positive (fx={fx:g}, fy={fy:g})")
     if not (0 <= cx <= width - 1 and 0 <= cy <= height - 1):
         raise InputError(f"{where}: principal point ({cx:g}, {cy:g}) lies outside the {width}x{height} image")
-    if model == "fov" and not (0 < dist["omega"] < math.pi):
+    if model == LensModel.FOV and not (0 < dist["omega"] < math.pi):
         raise InputError(f"{where}: omega must be in (0, pi), got {dist['omega']:g}")
     return _MODELS[model](width, height, fx, fy, cx, cy, **dist)
 

@@ -25,7 +25,7 @@ def distort(cam, x, y):
         r = math.sqrt(r2)
         if r < 1e-4:
             g = t2 / w * (1.0 - (r * t2) ** 2 / 3.0)
-            gpr = -(t2 ** 3) / (3.0 * w)
+            gpr = -(t2**3) / (3.0 * w)
         else:
             at = math.atan(r * t2)
             g = at / (w * r)

@@ -65,8 +65,9 @@ def parse_board(text: str, square: float) -> Board:
 
 def _subpix_half_window(corners: np.ndarray, board: Board, cfg: CalibrateConfig) -> int:
     grid = corners.reshape(board.rows, board.cols, 2)
-    spacing = min(np.linalg.norm(np.diff(grid, axis=0), axis=-1).min(),
-                  np.linalg.norm(np.diff(grid, axis=1), axis=-1).min())
+    spacing = min(
+        np.linalg.norm(np.diff(grid, axis=0), axis=-1).min(), np.linalg.norm(np.diff(grid, axis=1), axis=-1).min()
+    )
     return int(np.clip(cfg.subpix_window_frac * spacing, _MIN_SUBPIX_HALF_WINDOW, cfg.subpix_window_max_px))
 
 
@@ -182,8 +183,11 @@ def select_views(views: list[View], board: Board, size: tuple[int, int], cfg: Ca
     return [views[i] for i in sorted(chosen)]
 
 
-_CELL_NAMES_3 = [["top-left", "top", "top-right"], ["left", "centre", "right"],
-                 ["bottom-left", "bottom", "bottom-right"]]
+_CELL_NAMES_3 = [
+    ["top-left", "top", "top-right"],
+    ["left", "centre", "right"],
+    ["bottom-left", "bottom", "bottom-right"],
+]
 
 
 def missing_cells(corners: np.ndarray, size: tuple[int, int], grid: int) -> list[str]:

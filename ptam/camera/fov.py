@@ -11,13 +11,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..vocabulary import LensModel
 from .model import CameraModel
 
 _SMALL_R = 1e-6
 
 
 class FovCamera(CameraModel):
-    model = "fov"
+    model = LensModel.FOV
 
     def __init__(self, width, height, fx, fy, cx, cy, omega):
         super().__init__(width, height, fx, fy, cx, cy)
@@ -50,8 +51,9 @@ class FovCamera(CameraModel):
         # g'(r)/r, with the series limit −(2T)³/(3ω) as r → 0 (T2 = 2·tan(ω/2)).
         rs = np.where(r < 1e-4, 1.0, r)
         dr = (self._t2 / self.omega) / (1.0 + (rs * self._t2) ** 2)  # d r'/d r
-        gp_over_r = np.where(r < 1e-4, -(self._t2 ** 3) / (3.0 * self.omega),
-                             (dr * rs - np.arctan(rs * self._t2) / self.omega) / (rs ** 3))
+        gp_over_r = np.where(
+            r < 1e-4, -(self._t2**3) / (3.0 * self.omega), (dr * rs - np.arctan(rs * self._t2) / self.omega) / (rs**3)
+        )
         J = np.empty(xy.shape[:-1] + (2, 2))
         J[..., 0, 0] = g + gp_over_r * xy[..., 0] * xy[..., 0]
         J[..., 0, 1] = gp_over_r * xy[..., 0] * xy[..., 1]
@@ -63,10 +65,23 @@ class FovCamera(CameraModel):
         return [self.omega]
 
     def to_dict(self):
-        return {"model": self.model, "width": self.width, "height": self.height,
-                "fx": self.fx, "fy": self.fy, "cx": self.cx, "cy": self.cy, "omega": self.omega}
+        return {
+            "model": self.model,
+            "width": self.width,
+            "height": self.height,
+            "fx": self.fx,
+            "fy": self.fy,
+            "cx": self.cx,
+            "cy": self.cy,
+            "omega": self.omega,
+        }
 
     def ptam_vector(self) -> list[float]:
         """PTAM's normalised parameters [fx/W, fy/H, (cx+0.5)/W, (cy+0.5)/H, ω] for its own code."""
-        return [self.fx / self.width, self.fy / self.height, (self.cx + 0.5) / self.width,
-                (self.cy + 0.5) / self.height, self.omega]
+        return [
+            self.fx / self.width,
+            self.fy / self.height,
+            (self.cx + 0.5) / self.width,
+            (self.cy + 0.5) / self.height,
+            self.omega,
+        ]

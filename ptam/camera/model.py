@@ -13,7 +13,9 @@ from abc import ABC, abstractmethod
 
 import numpy as np
 
-MODEL_IDS = {"pinhole": 0, "fov": 1, "radtan": 2}
+from ..vocabulary import LensModel
+
+MODEL_IDS = {LensModel.PINHOLE: 0, LensModel.FOV: 1, LensModel.RADTAN: 2}
 KERNEL_PARAMS_LEN = 12  # [model_id, fx, fy, cx, cy, d0, d1, d2, d3, d4, max_r, width*height reserved]
 
 
@@ -27,7 +29,7 @@ class CameraModel(ABC):
         self.fy = float(fy)
         self.cx = float(cx)
         self.cy = float(cy)
-        self._max_r = None
+        self._max_r: float | None = None
 
     # -- distortion on the normalised plane ------------------------------------------------------
     @abstractmethod
@@ -112,15 +114,19 @@ class CameraModel(ABC):
 
     def in_image(self, uv: np.ndarray, border: float = 0.0) -> np.ndarray:
         uv = np.asarray(uv, dtype=np.float64)
-        return ((uv[..., 0] >= border) & (uv[..., 1] >= border)
-                & (uv[..., 0] <= self.width - 1 - border) & (uv[..., 1] <= self.height - 1 - border))
+        return (
+            (uv[..., 0] >= border)
+            & (uv[..., 1] >= border)
+            & (uv[..., 0] <= self.width - 1 - border)
+            & (uv[..., 1] <= self.height - 1 - border)
+        )
 
     def kernel_params(self) -> np.ndarray:
         p = np.zeros(KERNEL_PARAMS_LEN)
-        p[0] = MODEL_IDS[self.model]
+        p[0] = MODEL_IDS[LensModel(self.model)]
         p[1:5] = (self.fx, self.fy, self.cx, self.cy)
         d = self.distortion_params()
-        p[5:5 + len(d)] = d
+        p[5 : 5 + len(d)] = d
         p[10] = self.max_radius
         return p
 

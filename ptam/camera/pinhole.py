@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..vocabulary import LensModel
 from .model import CameraModel
 
 
 class PinholeCamera(CameraModel):
-    model = "pinhole"
+    model = LensModel.PINHOLE
 
     def distort(self, xy):
         return np.asarray(xy, dtype=np.float64).copy()
@@ -23,5 +24,12 @@ class PinholeCamera(CameraModel):
         return []
 
     def to_dict(self):
-        return {"model": self.model, "width": self.width, "height": self.height,
-                "fx": self.fx, "fy": self.fy, "cx": self.cx, "cy": self.cy}
+        return {
+            "model": self.model,
+            "width": self.width,
+            "height": self.height,
+            "fx": self.fx,
+            "fy": self.fy,
+            "cx": self.cx,
+            "cy": self.cy,
+        }

@@ -8,13 +8,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..vocabulary import LensModel
 from .model import CameraModel
 
 _UNDISTORT_ITERS = 30
 
 
 class RadTanCamera(CameraModel):
-    model = "radtan"
+    model = LensModel.RADTAN
 
     def __init__(self, width, height, fx, fy, cx, cy, k1=0.0, k2=0.0, p1=0.0, p2=0.0, k3=0.0):
         super().__init__(width, height, fx, fy, cx, cy)
@@ -57,6 +58,17 @@ class RadTanCamera(CameraModel):
         return [self.k1, self.k2, self.p1, self.p2, self.k3]
 
     def to_dict(self):
-        return {"model": self.model, "width": self.width, "height": self.height,
-                "fx": self.fx, "fy": self.fy, "cx": self.cx, "cy": self.cy,
-                "k1": self.k1, "k2": self.k2, "p1": self.p1, "p2": self.p2, "k3": self.k3}
+        return {
+            "model": self.model,
+            "width": self.width,
+            "height": self.height,
+            "fx": self.fx,
+            "fy": self.fy,
+            "cx": self.cx,
+            "cy": self.cy,
+            "k1": self.k1,
+            "k2": self.k2,
+            "p1": self.p1,
+            "p2": self.p2,
+            "k3": self.k3,
+        }

@@ -20,8 +20,11 @@ def natural_key(name: str) -> list:
 
 
 def list_images(directory: str) -> list[str]:
-    names = [n for n in os.listdir(directory)
-             if n.lower().endswith(IMAGE_EXTENSIONS) and os.path.isfile(os.path.join(directory, n))]
+    names = [
+        n
+        for n in os.listdir(directory)
+        if n.lower().endswith(IMAGE_EXTENSIONS) and os.path.isfile(os.path.join(directory, n))
+    ]
     return [os.path.join(directory, n) for n in sorted(names, key=natural_key)]
 
 

@@ -27,8 +27,11 @@ def _collect(source, collector: ViewCollector, step: int) -> int:
     returns the number of frames read."""
     live = source.length is None
     if live:
-        print(f"show the {collector.board.cols}x{collector.board.rows} board to the camera in many positions and "
-              "tilts, image corners included; Ctrl-C to finish", file=sys.stderr)
+        print(
+            f"show the {collector.board.cols}x{collector.board.rows} board to the camera in many positions and "
+            "tilts, image corners included; Ctrl-C to finish",
+            file=sys.stderr,
+        )
     frames = 0
     bar = tqdm(total=source.length, unit="frame", desc="detecting", disable=None, leave=False)
     try:
@@ -50,8 +53,10 @@ def _collect(source, collector: ViewCollector, step: int) -> int:
 
 def _report(result: CalibrationResult, views, frames: int, detections: int, candidates: int, name: str) -> None:
     dropped = len(views) - result.n_used
-    print(f"{len(views)} views used of {candidates} distinct chessboard views ({detections} detections in "
-          f"{frames} frames of {name})")
+    print(
+        f"{len(views)} views used of {candidates} distinct chessboard views ({detections} detections in "
+        f"{frames} frames of {name})"
+    )
     print("  view  frame   RMS px  tilt deg")
     for i, v in enumerate(views):
         note = "" if result.used[i] else "  dropped (outlier)"
@@ -74,8 +79,10 @@ def main(args, cfg) -> int:
         frames = _collect(source, collector, ccfg.frame_step)
         name, size = source.name, source.size
     if not collector.views:
-        raise InputError(f"no {board.cols}x{board.rows} chessboard found in {frames} frames of {name} "
-                         "(check --board: it counts inner corners)")
+        raise InputError(
+            f"no {board.cols}x{board.rows} chessboard found in {frames} frames of {name} "
+            "(check --board: it counts inner corners)"
+        )
     views = select_views(collector.views, board, size, ccfg)
     observed = np.stack([v.corners for v in views])
     result = calibrate(args.model, size, board.points(), observed, ccfg)
@@ -83,12 +90,18 @@ def main(args, cfg) -> int:
     used = observed[result.used]
     missing = missing_cells(used, size, ccfg.coverage_grid)
     if missing:
-        print(f"ptam: warning: no detected corner in the image's {', '.join(missing)} "
-              f"({ccfg.coverage_grid}x{ccfg.coverage_grid} grid): distortion there is extrapolated; "
-              "add views with the board near those parts of the image", file=sys.stderr)
+        print(
+            f"ptam: warning: no detected corner in the image's {', '.join(missing)} "
+            f"({ccfg.coverage_grid}x{ccfg.coverage_grid} grid): distortion there is extrapolated; "
+            "add views with the board near those parts of the image",
+            file=sys.stderr,
+        )
     if result.tilts_deg[result.used].max() < ccfg.min_tilt_deg:
-        print(f"ptam: warning: no view tilts the board more than {ccfg.min_tilt_deg:g} deg: focal length is poorly "
-              "determined; add tilted views", file=sys.stderr)
+        print(
+            f"ptam: warning: no view tilts the board more than {ccfg.min_tilt_deg:g} deg: focal length is poorly "
+            "determined; add tilted views",
+            file=sys.stderr,
+        )
     out_dir = os.path.dirname(os.path.abspath(args.output))
     if not os.path.isdir(out_dir):
         raise InputError(f"cannot write {args.output}: directory {out_dir} does not exist")

@@ -30,33 +30,42 @@ def main(args, cfg) -> int:
     t_gt, T_gt = t_gt[order], T_gt[order]
     n_gt = len(t_gt)
     length = path_length(T_gt[:, :3, 3])
-    print(f"groundtruth: {args.groundtruth}: {n_gt} poses over {t_gt[-1] - t_gt[0]:.3f} s, "
-          f"path length {length:.4f} m")
+    print(f"groundtruth: {args.groundtruth}: {n_gt} poses over {t_gt[-1] - t_gt[0]:.3f} s, path length {length:.4f} m")
     print(f"estimate:    {args.estimate}: {len(t_est)} poses")
 
     ig, ie = associate(t_gt, t_est, max_dt)
     matched = len(ig)
     if matched < MIN_POSES:
-        raise PtamError(f"only {matched} poses of {args.estimate} are within {max_dt:g} s of a ground-truth "
-                        f"pose; need at least {MIN_POSES} (check the timestamps or --max-dt)")
+        raise PtamError(
+            f"only {matched} poses of {args.estimate} are within {max_dt:g} s of a ground-truth "
+            f"pose; need at least {MIN_POSES} (check the timestamps or --max-dt)"
+        )
     print(f"matched {matched} of {n_gt} ground-truth poses within {max_dt:g} s")
 
     gt_xyz, est_xyz = T_gt[ig, :3, 3], T_est[ie, :3, 3]
     sim3 = ate(gt_xyz, est_xyz, with_scale=True)
-    print(f"ATE after Sim(3): rmse {sim3.rmse:.6g} m, median {np.median(sim3.errors):.6g} m, "
-          f"max {sim3.errors.max():.6g} m, scale {sim3.scale:.6g}")
+    print(
+        f"ATE after Sim(3): rmse {sim3.rmse:.6g} m, median {np.median(sim3.errors):.6g} m, "
+        f"max {sim3.errors.max():.6g} m, scale {sim3.scale:.6g}"
+    )
     if args.se3:
         se3 = ate(gt_xyz, est_xyz, with_scale=False)
-        print(f"ATE after SE(3):  rmse {se3.rmse:.6g} m, median {np.median(se3.errors):.6g} m, "
-              f"max {se3.errors.max():.6g} m")
+        print(
+            f"ATE after SE(3):  rmse {se3.rmse:.6g} m, median {np.median(se3.errors):.6g} m, "
+            f"max {se3.errors.max():.6g} m"
+        )
     i, j = pairs_by_time(t_gt[ig], cfg.eval.rpe_delta_s)
     if len(i):
         rel = rpe(T_gt[ig], T_est[ie], i, j, scale=sim3.scale)
-        print(f"RPE over {cfg.eval.rpe_delta_s:g} s (Sim(3) scale): translation rmse {rel.trans_rmse:.6g} m, "
-              f"rotation rmse {rel.rot_rmse_deg:.6g} deg ({rel.pairs} pairs)")
+        print(
+            f"RPE over {cfg.eval.rpe_delta_s:g} s (Sim(3) scale): translation rmse {rel.trans_rmse:.6g} m, "
+            f"rotation rmse {rel.rot_rmse_deg:.6g} deg ({rel.pairs} pairs)"
+        )
     else:
         print(f"RPE over {cfg.eval.rpe_delta_s:g} s: matched poses span less than that, skipped")
 
-    print(f"ate_rmse_m={sim3.rmse:.9g} scale={sim3.scale:.9g} matched={matched}/{n_gt} "
-          f"tracked_fraction={matched / n_gt:.9g} path_length_m={length:.9g}")
+    print(
+        f"ate_rmse_m={sim3.rmse:.9g} scale={sim3.scale:.9g} matched={matched}/{n_gt} "
+        f"tracked_fraction={matched / n_gt:.9g} path_length_m={length:.9g}"
+    )
     return 0

@@ -15,11 +15,15 @@ def print_summary(system, mode: str, dropped: int | None, viewer=None) -> None:
     ms = np.asarray(s.track_ms) if s.track_ms else np.zeros(1)
     ba = system.mapper.stats
     tracked = 100.0 * s.tracked / max(s.frames, 1)
-    print(f"frames {s.frames}  tracked {s.tracked} ({tracked:.1f}%)  lost events {s.lost_events}  "
-          f"relocalisations {s.relocalisations}  keyframes {kfs}  points {pts}")
-    line = (f"tracking ms median {np.median(ms):.1f}  p95 {np.percentile(ms, 95):.1f}  "
-            f"BA runs {len(ba['local_ba']) + len(ba['global_ba'])} (local {len(ba['local_ba'])}, "
-            f"global {len(ba['global_ba'])})  mode {mode}")
+    print(
+        f"frames {s.frames}  tracked {s.tracked} ({tracked:.1f}%)  lost events {s.lost_events}  "
+        f"relocalisations {s.relocalisations}  keyframes {kfs}  points {pts}"
+    )
+    line = (
+        f"tracking ms median {np.median(ms):.1f}  p95 {np.percentile(ms, 95):.1f}  "
+        f"BA runs {len(ba['local_ba']) + len(ba['global_ba'])} (local {len(ba['local_ba'])}, "
+        f"global {len(ba['global_ba'])})  mode {mode}"
+    )
     if dropped is not None:
         line += f"  dropped frames {dropped}"
     if viewer is not None and viewer.dropped:

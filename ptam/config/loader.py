@@ -45,23 +45,23 @@ def _coerce(where: str, value, typ):
         if not isinstance(value, (list, tuple)):
             raise ConfigError(f"config: {where} must be a list of {inner.__name__}, got {value!r}")
         return [_coerce(f"{where}[{i}]", v, inner) for i, v in enumerate(value)]
-    if typ is bool:
-        if isinstance(value, bool):
-            return value
-    elif typ is int:
-        if isinstance(value, int) and not isinstance(value, bool):
-            return value
-    elif typ is float:
-        if isinstance(value, (int, float)) and not isinstance(value, bool):
-            return float(value)
-    elif typ is str:
-        if isinstance(value, str):
-            return value
-    elif isinstance(typ, type) and issubclass(typ, StrEnum):
+    if isinstance(typ, type) and issubclass(typ, StrEnum):
         if isinstance(value, str) and value in typ._value2member_map_:
             return typ(value)
         raise ConfigError(f"config: {where} must be one of {', '.join(m.value for m in typ)}, got {value!r}")
+    accepts = _SCALARS.get(typ)
+    if accepts is not None and accepts(value):
+        return float(value) if typ is float else value
     raise ConfigError(f"config: {where} must be {typ.__name__}, got {value!r}")
+
+
+# A bool is an int to Python, never to a config file.
+_SCALARS = {
+    bool: lambda v: isinstance(v, bool),
+    int: lambda v: isinstance(v, int) and not isinstance(v, bool),
+    float: lambda v: isinstance(v, (int, float)) and not isinstance(v, bool),
+    str: lambda v: isinstance(v, str),
+}
 
 
 def _merge(base: dict, overlay, source: str) -> None:
@@ -83,8 +83,7 @@ def _set(base: dict, sec: str, key: str, value, source: str) -> None:
         raise ConfigError(f"{source}: unknown config section '{sec}'{_suggest(sec, sections)}")
     hints = _field_types(sections[sec])
     if key not in hints:
-        options = [f"{sec}.{k}" for k in hints] + [f"{s}.{k}" for s in sections
-                                                    for k in _field_types(sections[s])]
+        options = [f"{sec}.{k}" for k in hints] + [f"{s}.{k}" for s in sections for k in _field_types(sections[s])]
         raise ConfigError(f"{source}: unknown config key '{sec}.{key}'{_suggest(f'{sec}.{key}', options)}")
     value = _coerce(f"{sec}.{key}", value, hints[key])
     base.setdefault(sec, {})[key] = value

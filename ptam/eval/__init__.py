@@ -5,5 +5,14 @@ from .ate import AteResult, ate
 from .rpe import RpeResult, pairs_by_frames, pairs_by_time, rpe
 from .tum_io import read_tum, write_tum
 
-__all__ = ["read_tum", "write_tum", "associate", "ate", "AteResult", "rpe", "RpeResult", "pairs_by_frames",
-           "pairs_by_time"]
+__all__ = [
+    "read_tum",
+    "write_tum",
+    "associate",
+    "ate",
+    "AteResult",
+    "rpe",
+    "RpeResult",
+    "pairs_by_frames",
+    "pairs_by_time",
+]

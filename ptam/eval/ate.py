@@ -15,12 +15,12 @@ MIN_POSES = 3  # Umeyama's alignment is determined by three non-collinear positi
 
 @dataclass(frozen=True)
 class AteResult:
-    rmse: float           # metres (ground-truth units)
-    scale: float          # s in gt ≈ s·R·est + t (1 for SE(3) alignment)
-    R: np.ndarray         # (3, 3)
-    t: np.ndarray         # (3,)
-    matched: int          # poses compared
-    errors: np.ndarray    # (matched,) per-pose position error after alignment
+    rmse: float  # metres (ground-truth units)
+    scale: float  # s in gt ≈ s·R·est + t (1 for SE(3) alignment)
+    R: np.ndarray  # (3, 3)
+    t: np.ndarray  # (3,)
+    matched: int  # poses compared
+    errors: np.ndarray  # (matched,) per-pose position error after alignment
 
     def aligned(self, est_xyz: np.ndarray) -> np.ndarray:
         """Estimated positions mapped into the ground-truth frame."""
@@ -38,4 +38,4 @@ def ate(gt_xyz: np.ndarray, est_xyz: np.ndarray, with_scale: bool = True) -> Ate
         raise PtamError("ATE: every estimated position is the same point, so no scale can be fitted")
     s, R, t = umeyama(est_xyz, gt_xyz, with_scale=with_scale)
     errors = np.linalg.norm(gt_xyz - (s * est_xyz @ R.T + t), axis=1)
-    return AteResult(float(np.sqrt(np.mean(errors ** 2))), float(s), R, t, n, errors)
+    return AteResult(float(np.sqrt(np.mean(errors**2))), float(s), R, t, n, errors)

@@ -14,10 +14,10 @@ from ..geometry import se3, so3
 
 @dataclass(frozen=True)
 class RpeResult:
-    trans_rmse: float          # metres per delta
-    rot_rmse_deg: float        # degrees per delta
+    trans_rmse: float  # metres per delta
+    rot_rmse_deg: float  # degrees per delta
     pairs: int
-    trans_errors: np.ndarray   # (pairs,)
+    trans_errors: np.ndarray  # (pairs,)
     rot_errors_deg: np.ndarray  # (pairs,)
 
 
@@ -54,4 +54,4 @@ def rpe(T_wc_gt: np.ndarray, T_wc_est: np.ndarray, i: np.ndarray, j: np.ndarray,
     E = se3.inv(se3.inv(Q[i]) @ Q[j]) @ (se3.inv(P[i]) @ P[j])
     trans = np.linalg.norm(E[:, :3, 3], axis=1)
     rot = np.degrees(np.linalg.norm(so3.log(E[:, :3, :3]), axis=1))
-    return RpeResult(float(np.sqrt(np.mean(trans ** 2))), float(np.sqrt(np.mean(rot ** 2))), len(i), trans, rot)
+    return RpeResult(float(np.sqrt(np.mean(trans**2))), float(np.sqrt(np.mean(rot**2))), len(i), trans, rot)

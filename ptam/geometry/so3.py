@@ -42,9 +42,8 @@ def _rodrigues_coeffs(theta: np.ndarray):
     small = theta < _SERIES
     ts = np.where(small, 1.0, theta)
     A = np.where(small, 1.0 - t2 / 6.0 + t4 / 120.0 - t4 * t2 / 5040.0, np.sin(ts) / ts)
-    B = np.where(small, 0.5 - t2 / 24.0 + t4 / 720.0 - t4 * t2 / 40320.0,
-                 2.0 * np.sin(0.5 * ts) ** 2 / (ts * ts))
-    C = np.where(small, 1.0 / 6.0 - t2 / 120.0 + t4 / 5040.0 - t4 * t2 / 362880.0, (ts - np.sin(ts)) / (ts ** 3))
+    B = np.where(small, 0.5 - t2 / 24.0 + t4 / 720.0 - t4 * t2 / 40320.0, 2.0 * np.sin(0.5 * ts) ** 2 / (ts * ts))
+    C = np.where(small, 1.0 / 6.0 - t2 / 120.0 + t4 / 5040.0 - t4 * t2 / 362880.0, (ts - np.sin(ts)) / (ts**3))
     return A, B, C
 
 
@@ -71,16 +70,43 @@ def to_quaternion(R: np.ndarray) -> np.ndarray:
     s2 = np.sqrt(np.maximum(1.0 + R[..., 1, 1] - R[..., 0, 0] - R[..., 2, 2], 0.0)) * 2.0
     s3 = np.sqrt(np.maximum(1.0 + R[..., 2, 2] - R[..., 0, 0] - R[..., 1, 1], 0.0)) * 2.0
     with np.errstate(divide="ignore", invalid="ignore"):
-        b0 = np.stack([(R[..., 2, 1] - R[..., 1, 2]) / s0, (R[..., 0, 2] - R[..., 2, 0]) / s0,
-                       (R[..., 1, 0] - R[..., 0, 1]) / s0, 0.25 * s0], axis=-1)
-        b1 = np.stack([0.25 * s1, (R[..., 0, 1] + R[..., 1, 0]) / s1,
-                       (R[..., 0, 2] + R[..., 2, 0]) / s1, (R[..., 2, 1] - R[..., 1, 2]) / s1], axis=-1)
-        b2 = np.stack([(R[..., 0, 1] + R[..., 1, 0]) / s2, 0.25 * s2,
-                       (R[..., 1, 2] + R[..., 2, 1]) / s2, (R[..., 0, 2] - R[..., 2, 0]) / s2], axis=-1)
-        b3 = np.stack([(R[..., 0, 2] + R[..., 2, 0]) / s3, (R[..., 1, 2] + R[..., 2, 1]) / s3,
-                       0.25 * s3, (R[..., 1, 0] - R[..., 0, 1]) / s3], axis=-1)
-    q = np.where((k == 0)[..., None], b0, np.where((k == 1)[..., None], b1,
-                 np.where((k == 2)[..., None], b2, b3)))
+        b0 = np.stack(
+            [
+                (R[..., 2, 1] - R[..., 1, 2]) / s0,
+                (R[..., 0, 2] - R[..., 2, 0]) / s0,
+                (R[..., 1, 0] - R[..., 0, 1]) / s0,
+                0.25 * s0,
+            ],
+            axis=-1,
+        )
+        b1 = np.stack(
+            [
+                0.25 * s1,
+                (R[..., 0, 1] + R[..., 1, 0]) / s1,
+                (R[..., 0, 2] + R[..., 2, 0]) / s1,
+                (R[..., 2, 1] - R[..., 1, 2]) / s1,
+            ],
+            axis=-1,
+        )
+        b2 = np.stack(
+            [
+                (R[..., 0, 1] + R[..., 1, 0]) / s2,
+                0.25 * s2,
+                (R[..., 1, 2] + R[..., 2, 1]) / s2,
+                (R[..., 0, 2] - R[..., 2, 0]) / s2,
+            ],
+            axis=-1,
+        )
+        b3 = np.stack(
+            [
+                (R[..., 0, 2] + R[..., 2, 0]) / s3,
+                (R[..., 1, 2] + R[..., 2, 1]) / s3,
+                0.25 * s3,
+                (R[..., 1, 0] - R[..., 0, 1]) / s3,
+            ],
+            axis=-1,
+        )
+    q = np.where((k == 0)[..., None], b0, np.where((k == 1)[..., None], b1, np.where((k == 2)[..., None], b2, b3)))
     q = np.where((q[..., 3] < 0)[..., None], -q, q)
     return q / np.linalg.norm(q, axis=-1, keepdims=True)
 
@@ -134,8 +160,11 @@ def left_jacobian_inv(w: np.ndarray) -> np.ndarray:
     small = theta < _SERIES
     ts = np.where(small, 1.0, theta)
     t2 = theta * theta
-    D = np.where(small, 1.0 / 12.0 + t2 / 720.0 + t2 * t2 / 30240.0 + t2 ** 3 / 1209600.0,
-                 (1.0 - 0.5 * ts / np.tan(0.5 * ts)) / (ts * ts))
+    D = np.where(
+        small,
+        1.0 / 12.0 + t2 / 720.0 + t2 * t2 / 30240.0 + t2**3 / 1209600.0,
+        (1.0 - 0.5 * ts / np.tan(0.5 * ts)) / (ts * ts),
+    )
     W = hat(w)
     eye = np.broadcast_to(np.eye(3), W.shape)
     return eye - 0.5 * W + D[..., None, None] * (W @ W)

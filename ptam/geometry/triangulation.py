@@ -36,8 +36,7 @@ def triangulate_nview(T_cw: np.ndarray, rays: np.ndarray, valid: np.ndarray | No
     return X
 
 
-def triangulate_two_view(T_cw_a: np.ndarray, T_cw_b: np.ndarray, rays_a: np.ndarray,
-                         rays_b: np.ndarray) -> np.ndarray:
+def triangulate_two_view(T_cw_a: np.ndarray, T_cw_b: np.ndarray, rays_a: np.ndarray, rays_b: np.ndarray) -> np.ndarray:
     """Points (M, 3) from two views' poses and matched rays (M, 2)."""
     return triangulate_nview(np.stack([T_cw_a, T_cw_b]), np.stack([rays_a, rays_b]))
 

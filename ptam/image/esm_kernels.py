@@ -71,8 +71,7 @@ def esm_se2(image, template, template_grad, params0, iterations, with_offset):
         score = 0.0
         for y in range(1, h - 1):
             for x in range(1, w - 1):
-                if not (valid[y, x] and valid[y, x - 1] and valid[y, x + 1] and valid[y - 1, x]
-                        and valid[y + 1, x]):
+                if not (valid[y, x] and valid[y, x - 1] and valid[y, x + 1] and valid[y - 1, x] and valid[y + 1, x]):
                     continue
                 gx = 0.25 * (warped[y, x + 1] - warped[y, x - 1]) + 0.5 * template_grad[y, x, 0]
                 gy = 0.25 * (warped[y + 1, x] - warped[y - 1, x]) + 0.5 * template_grad[y, x, 1]

@@ -22,11 +22,14 @@ def fast_corners(img: np.ndarray, threshold: int, nonmax: bool = False) -> np.nd
     """
     if img.dtype != np.uint8 or img.ndim != 2:
         raise InputError(f"FAST needs a 2-D uint8 image, got {img.dtype} with shape {img.shape}")
-    detector = cv2.FastFeatureDetector_create(int(threshold), bool(nonmax), cv2.FastFeatureDetector_TYPE_9_16)
+    detector = cv2.FastFeatureDetector_create(  # type: ignore[attr-defined]  # OpenCV's stubs miss it
+        int(threshold), bool(nonmax), cv2.FastFeatureDetector_TYPE_9_16
+    )
     keypoints = detector.detect(img)
     if not keypoints:
         return np.zeros((0, 2), np.int32)
-    xy = np.rint(cv2.KeyPoint_convert(keypoints)).astype(np.int32)
+    xy = np.rint(cv2.KeyPoint_convert(keypoints))  # type: ignore[attr-defined]
+    xy = xy.astype(np.int32)
     # OpenCV scans rows in order, so this is normally already sorted; the row look-up table relies on it.
     key = xy[:, 1].astype(np.int64) * (img.shape[1] + 1) + xy[:, 0]
     if np.any(key[1:] < key[:-1]):

@@ -67,8 +67,9 @@ class Pyramid:
         """PTAM §5.1 (code ``KeyFrame::MakeKeyFrame_Lite``): half-sample, FAST without NMS per level."""
         n = image_cfg.levels
         if len(image_cfg.fast_thresholds) != n:
-            raise ConfigError(f"config: image.fast_thresholds needs {n} values (one per level), "
-                              f"got {len(image_cfg.fast_thresholds)}")
+            raise ConfigError(
+                f"config: image.fast_thresholds needs {n} values (one per level), got {len(image_cfg.fast_thresholds)}"
+            )
         img = np.asarray(img)
         if img.dtype != np.uint8 or img.ndim != 2:
             raise InputError(f"pyramid needs a 2-D uint8 greyscale image, got {img.dtype} with shape {img.shape}")

@@ -43,7 +43,7 @@ class Alignment:
     """An SE(2) (+ offset) alignment: template pixel x lies at c + R(θ)(x − c) + t in the aligned image."""
 
     params: np.ndarray  # (t_x, t_y, θ, intensity offset)
-    score: float        # SSD over the pixels used in the last iteration
+    score: float  # SSD over the pixels used in the last iteration
     iterations: int
 
 
@@ -58,15 +58,16 @@ class SmallBlurryImage:
     def from_small(cls, small: np.ndarray, sigma: float) -> SmallBlurryImage:
         """Agility §7 order: blur, then subtract the mean."""
         img = cv2.GaussianBlur(np.asarray(small, np.float32), (0, 0), float(sigma), borderType=cv2.BORDER_REFLECT)
-        img -= np.float32(img.mean())
+        img -= img.mean(dtype=np.float32)
         return cls(img, gradient(img))
 
     @classmethod
     def from_pyramid(cls, pyramid: Pyramid, sigma: float) -> SmallBlurryImage:
         return cls.from_small(small_image(pyramid), sigma)
 
-    def align_to(self, template: SmallBlurryImage, iterations: int, with_offset: bool,
-                 start: np.ndarray | None = None) -> Alignment:
+    def align_to(
+        self, template: SmallBlurryImage, iterations: int, with_offset: bool, start: np.ndarray | None = None
+    ) -> Alignment:
         """ESM over SE(2) (and an intensity offset) of this image onto ``template`` (Agility §6, §7)."""
         p0 = np.zeros(4) if start is None else np.asarray(start, np.float64)
         p, score, its = esm_se2(self.image, template.image, template.grad, p0, int(iterations), bool(with_offset))

@@ -15,10 +15,21 @@ from ..errors import PtamError
 from .keyframe import KeyFrame
 from .snapshot import MapSnapshot, camera_centres
 
-_POINT_FIELDS = {"X": (np.float64, (3,)), "normal": (np.float64, (3,)), "source_kf": (np.int32, ()),
-                 "source_level": (np.int8, ()), "source_xy": (np.float64, (2,)), "bad": (np.bool_, ())}
-_MEAS_FIELDS = {"meas_kf": (np.int32, ()), "meas_pt": (np.int32, ()), "meas_xy": (np.float64, (2,)),
-                "meas_level": (np.int8, ()), "meas_source": (np.int8, ())}
+_POINT_FIELDS = {
+    "X": (np.float64, (3,)),
+    "normal": (np.float64, (3,)),
+    "source_kf": (np.int32, ()),
+    "source_level": (np.int8, ()),
+    "source_xy": (np.float64, (2,)),
+    "bad": (np.bool_, ()),
+}
+_MEAS_FIELDS = {
+    "meas_kf": (np.int32, ()),
+    "meas_pt": (np.int32, ()),
+    "meas_xy": (np.float64, (2,)),
+    "meas_level": (np.int8, ()),
+    "meas_source": (np.int8, ()),
+}
 
 # Where a measurement came from (PTAM code ``Measurement::Source``): outliers of bundle adjustment get a
 # second chance only when made by the tracker or the epipolar search; a point whose root (source-keyframe)
@@ -48,7 +59,7 @@ class _Columns:
         m = len(next(iter(values.values())))
         self.reserve(m)
         for k, v in values.items():
-            self.data[k][self.n: self.n + m] = v
+            self.data[k][self.n : self.n + m] = v
         idx = np.arange(self.n, self.n + m)
         self.n += m
         return idx
@@ -114,8 +125,11 @@ class Map:
             T[:i] = self._kf_T_cw[:i]
             self._kf_T_cw = T
             # New stacks: snapshots keep views of the old ones, whose first i entries never change.
-            self._kf_images = [np.zeros((cap, *im.shape), np.uint8) for im in levels] if i == 0 else [
-                np.concatenate([s[:i], np.zeros((cap - i, *s.shape[1:]), np.uint8)]) for s in self._kf_images]
+            self._kf_images = (
+                [np.zeros((cap, *im.shape), np.uint8) for im in levels]
+                if i == 0
+                else [np.concatenate([s[:i], np.zeros((cap - i, *s.shape[1:]), np.uint8)]) for s in self._kf_images]
+            )
         self._kf_T_cw[i] = T_cw
         for stack, im in zip(self._kf_images, levels):
             stack[i] = im
@@ -154,10 +168,14 @@ class Map:
         if X.ndim != 2:
             raise PtamError(f"map: X must have shape (M, 3), got {X.shape}")
         n = len(X)
-        values = dict(X=_rows("X", X, n, (3,), np.float64), normal=_rows("normal", normal, n, (3,), np.float64),
-                      source_kf=_rows("source_kf", source_kf, n, (), np.int32),
-                      source_level=_rows("source_level", source_level, n, (), np.int8),
-                      source_xy=_rows("source_xy", source_xy, n, (2,), np.float64), bad=np.zeros(n, bool))
+        values = dict(
+            X=_rows("X", X, n, (3,), np.float64),
+            normal=_rows("normal", normal, n, (3,), np.float64),
+            source_kf=_rows("source_kf", source_kf, n, (), np.int32),
+            source_level=_rows("source_level", source_level, n, (), np.int8),
+            source_xy=_rows("source_xy", source_xy, n, (2,), np.float64),
+            bad=np.zeros(n, bool),
+        )
         self._check_indices("source keyframe", values["source_kf"], self.n_keyframes)
         idx = self._points.append(**values)
         self._changed()
@@ -204,9 +222,13 @@ class Map:
         responsibility."""
         pt = np.asarray(pt, dtype=np.int32).reshape(-1)
         n = len(pt)
-        values = dict(meas_kf=_rows("kf", kf, n, (), np.int32), meas_pt=pt,
-                      meas_xy=_rows("xy", xy, n, (2,), np.float64), meas_level=_rows("level", level, n, (), np.int8),
-                      meas_source=_rows("source", source, n, (), np.int8))
+        values = dict(
+            meas_kf=_rows("kf", kf, n, (), np.int32),
+            meas_pt=pt,
+            meas_xy=_rows("xy", xy, n, (2,), np.float64),
+            meas_level=_rows("level", level, n, (), np.int8),
+            meas_source=_rows("source", source, n, (), np.int8),
+        )
         self._check_indices("keyframe", values["meas_kf"], self.n_keyframes)
         self._check_indices("point", pt, self._points.n)
         idx = self._meas.append(**values)
@@ -239,10 +261,14 @@ class Map:
             good = np.flatnonzero(~P.data["bad"][: P.n])
             good.setflags(write=False)
             self._snapshot = MapSnapshot(
-                version=self.version, keyframes=tuple(self.keyframes), kf_T_cw=T,
+                version=self.version,
+                keyframes=tuple(self.keyframes),
+                kf_T_cw=T,
                 kf_images=tuple(self._frozen_stack(s) for s in self._kf_images),
-                **{k: P.copy(k) for k in _POINT_FIELDS}, **{k: M.copy(k) for k in _MEAS_FIELDS},
-                good_point_indices=good)
+                **{k: P.copy(k) for k in _POINT_FIELDS},
+                **{k: M.copy(k) for k in _MEAS_FIELDS},
+                good_point_indices=good,
+            )
         return self._snapshot
 
     # -- helpers -----------------------------------------------------------------------------------------

@@ -49,8 +49,10 @@ def save_map(path: str | os.PathLike, snapshot: MapSnapshot, camera, levels: int
     if snapshot.n_keyframes == 0:
         raise PtamError(f"no map to write to {path}: it has no keyframes")
     arrays = {
-        "format": np.array(FORMAT), "version": np.array(VERSION),
-        "camera": np.array(json.dumps(camera.to_dict())), "levels": np.array(levels),
+        "format": np.array(FORMAT),
+        "version": np.array(VERSION),
+        "camera": np.array(json.dumps(camera.to_dict())),
+        "levels": np.array(levels),
         "kf_image0": np.stack([kf.pyramid.levels[0] for kf in snapshot.keyframes]),
         "kf_T_cw": np.asarray(snapshot.kf_T_cw),
         "kf_depth_mean": np.array([kf.scene_depth_mean for kf in snapshot.keyframes]),
@@ -110,21 +112,26 @@ def load_map(path: str | os.PathLike, image_cfg) -> LoadedMap:
     except json.JSONDecodeError:
         raise InputError(f"map file {path}: unreadable camera record") from None
     if int(a["levels"]) != image_cfg.levels:
-        raise InputError(f"map file {path} was built with {int(a['levels'])} pyramid levels; the config has "
-                         f"image.levels = {image_cfg.levels}")
+        raise InputError(
+            f"map file {path} was built with {int(a['levels'])} pyramid levels; the config has "
+            f"image.levels = {image_cfg.levels}"
+        )
     images = a["kf_image0"]
     n = len(images)
     if n == 0 or images.ndim != 3 or images.dtype != np.uint8 or images.shape[1:] != (camera.height, camera.width):
-        raise InputError(f"map file {path}: keyframe images of shape {images.shape} ({images.dtype}) do not match "
-                         f"its {camera.width}x{camera.height} camera")
+        raise InputError(
+            f"map file {path}: keyframe images of shape {images.shape} ({images.dtype}) do not match "
+            f"its {camera.width}x{camera.height} camera"
+        )
     if any(len(a[k]) != n for k in _KEYFRAMES):
         raise InputError(f"map file {path}: keyframe arrays of different lengths")
     m = Map()
     try:
         for i in range(n):
             pyramid = Pyramid.build(images[i], image_cfg)
-            kf = KeyFrame(i, pyramid, float(a["kf_depth_mean"][i]), float(a["kf_depth_sigma"][i]),
-                          float(a["kf_timestamp"][i]))
+            kf = KeyFrame(
+                i, pyramid, float(a["kf_depth_mean"][i]), float(a["kf_depth_sigma"][i]), float(a["kf_timestamp"][i])
+            )
             m.add_keyframe(kf, a["kf_T_cw"][i])
         m.add_points(a["X"], a["normal"], a["source_kf"], a["source_level"], a["source_xy"])
         if a["bad"].shape != (m.n_points_total,):

@@ -42,8 +42,11 @@ def _to_camera(T, points, p):
     X = points[p, 0]
     Y = points[p, 1]
     Z = points[p, 2]
-    return (T[0, 0] * X + T[0, 1] * Y + T[0, 2] * Z + T[0, 3], T[1, 0] * X + T[1, 1] * Y + T[1, 2] * Z + T[1, 3],
-            T[2, 0] * X + T[2, 1] * Y + T[2, 2] * Z + T[2, 3])
+    return (
+        T[0, 0] * X + T[0, 1] * Y + T[0, 2] * Z + T[0, 3],
+        T[1, 0] * X + T[1, 1] * Y + T[1, 2] * Z + T[1, 3],
+        T[2, 0] * X + T[2, 1] * Y + T[2, 2] * Z + T[2, 3],
+    )
 
 
 @njit(nogil=True, cache=True)

@@ -21,27 +21,28 @@ from .bundle_solve_kernels import ba_envelope, ba_envelope_solve
 
 @dataclass(frozen=True)
 class BundleStructure:
-    cams: np.ndarray       # (Nc,) input indices of the keyframes with a measurement in the problem
-    free: np.ndarray       # (Nc,) bool, adjusted (not fixed)
-    cam_row: np.ndarray    # (Nc,) block row of a free camera in S, −1 when fixed
-    pts: np.ndarray        # (Mc,) input indices of the adjusted points with a measurement
-    sel: np.ndarray        # (Kc,) input indices of the measurements in the problem
-    mcam: np.ndarray       # (Kc,) compact camera of each measurement
-    mpt: np.ndarray        # (Kc,) compact point of each measurement
-    mrow: np.ndarray       # (Kc,) cam_row[mcam]
-    order: np.ndarray      # (Kc,) measurements sorted by point, then camera row
-    pt_start: np.ndarray   # (Mc + 1,) point p's measurements are order[pt_start[p]:pt_start[p + 1]]
+    cams: np.ndarray  # (Nc,) input indices of the keyframes with a measurement in the problem
+    free: np.ndarray  # (Nc,) bool, adjusted (not fixed)
+    cam_row: np.ndarray  # (Nc,) block row of a free camera in S, −1 when fixed
+    pts: np.ndarray  # (Mc,) input indices of the adjusted points with a measurement
+    sel: np.ndarray  # (Kc,) input indices of the measurements in the problem
+    mcam: np.ndarray  # (Kc,) compact camera of each measurement
+    mpt: np.ndarray  # (Kc,) compact point of each measurement
+    mrow: np.ndarray  # (Kc,) cam_row[mcam]
+    order: np.ndarray  # (Kc,) measurements sorted by point, then camera row
+    pt_start: np.ndarray  # (Mc + 1,) point p's measurements are order[pt_start[p]:pt_start[p + 1]]
     pair_rows: np.ndarray  # (B,) block row of each block of S (the first n_free are the diagonal)
     pair_cols: np.ndarray  # (B,) block column (≤ row: S is stored as its lower triangle)
-    pair_id: np.ndarray    # block index of each camera pair in ba_pair_script's walk
+    pair_id: np.ndarray  # block index of each camera pair in ba_pair_script's walk
 
     @property
     def n_free(self) -> int:
         return int(self.free.sum())
 
 
-def build_structure(meas_kf: np.ndarray, meas_pt: np.ndarray, fixed_poses: np.ndarray,
-                    adjust_points: np.ndarray) -> BundleStructure:
+def build_structure(
+    meas_kf: np.ndarray, meas_pt: np.ndarray, fixed_poses: np.ndarray, adjust_points: np.ndarray
+) -> BundleStructure:
     """Only measurements of points in ``adjust_points`` take part (PTAM eq. 11: j ∈ Z)."""
     sel = np.flatnonzero(adjust_points[meas_pt])
     cams, mcam = np.unique(meas_kf[sel], return_inverse=True)
@@ -59,9 +60,20 @@ def build_structure(meas_kf: np.ndarray, meas_pt: np.ndarray, fixed_poses: np.nd
     pair_id, rows, cols = ba_pair_script(pt_start, order, mrow, n_free)
     diag = np.arange(n_free, dtype=np.int64)
     return BundleStructure(
-        cams=cams, free=free, cam_row=cam_row, pts=pts, sel=sel, mcam=mcam.astype(np.int64),
-        mpt=mpt.astype(np.int64), mrow=mrow, order=order, pt_start=pt_start,
-        pair_rows=np.concatenate([diag, rows]), pair_cols=np.concatenate([diag, cols]), pair_id=n_free + pair_id)
+        cams=cams,
+        free=free,
+        cam_row=cam_row,
+        pts=pts,
+        sel=sel,
+        mcam=mcam.astype(np.int64),
+        mpt=mpt.astype(np.int64),
+        mrow=mrow,
+        order=order,
+        pt_start=pt_start,
+        pair_rows=np.concatenate([diag, rows]),
+        pair_cols=np.concatenate([diag, cols]),
+        pair_id=n_free + pair_id,
+    )
 
 
 class ReducedSolver:

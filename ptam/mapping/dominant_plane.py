@@ -18,8 +18,8 @@ from ..geometry import se3
 
 @dataclass(frozen=True)
 class Plane:
-    normal: np.ndarray   # (3,) unit
-    point: np.ndarray    # (3,) a point on the plane (the consensus set's mean)
+    normal: np.ndarray  # (3,) unit
+    point: np.ndarray  # (3,) a point on the plane (the consensus set's mean)
     inliers: np.ndarray  # (N,) bool
 
 

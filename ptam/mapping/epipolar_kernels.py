@@ -16,8 +16,9 @@ from numba import njit
 
 
 @njit(nogil=True, cache=True)
-def epipolar_search(img, corners, corners_plane, row_lut, box, templates, normal, dist, along, lo, hi, max_perp,
-                    max_ssd):
+def epipolar_search(
+    img, corners, corners_plane, row_lut, box, templates, normal, dist, along, lo, hi, max_perp, max_ssd
+):
     """img: target level (H, W) uint8; corners (K, 2) int32 level pixels (sorted by row, ``row_lut`` (H+1,))
     with unit-plane positions corners_plane (K, 2); per candidate: pixel box (x0, y0, x1, y1) int, template
     (size, size) zero-mean, line normal (2,), offset ``dist`` (normal·p = dist on the line), direction

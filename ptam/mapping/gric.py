@@ -36,10 +36,12 @@ def sampson_sq(E: np.ndarray, x0: np.ndarray, x1: np.ndarray) -> np.ndarray:
 
 def transfer_sq(H: np.ndarray, x0: np.ndarray, x1: np.ndarray) -> np.ndarray:
     """Symmetric transfer error² (mean of both directions) of matches under x1 ~ H·x0."""
+
     def apply(M, x):
         h = np.concatenate([x, np.ones((len(x), 1))], axis=1) @ M.T
         with np.errstate(divide="ignore", invalid="ignore"):
             return h[:, :2] / h[:, 2:3]
+
     e1 = ((apply(H, x0) - x1) ** 2).sum(axis=1)
     e0 = ((apply(np.linalg.inv(H), x1) - x0) ** 2).sum(axis=1)
     out = 0.5 * (e0 + e1)

@@ -20,13 +20,20 @@ from .bundle import AbortFlag, Bundle, BundleResult
 
 @dataclass(frozen=True)
 class LocalSets:
-    adjust: np.ndarray   # (N,) bool, X minus permanently fixed keyframes: the poses that move
-    fixed: np.ndarray    # (N,) bool, Y: fixed keyframes that measure a point of Z
-    points: np.ndarray   # (M,) bool, Z
+    adjust: np.ndarray  # (N,) bool, X minus permanently fixed keyframes: the poses that move
+    fixed: np.ndarray  # (N,) bool, Y: fixed keyframes that measure a point of Z
+    points: np.ndarray  # (M,) bool, Z
 
 
-def local_sets(kf_T_cw: np.ndarray, meas_kf: np.ndarray, meas_pt: np.ndarray, n_points: int, newest: int,
-               neighbours: int, fixed_keyframes: np.ndarray | None = None) -> LocalSets:
+def local_sets(
+    kf_T_cw: np.ndarray,
+    meas_kf: np.ndarray,
+    meas_pt: np.ndarray,
+    n_points: int,
+    newest: int,
+    neighbours: int,
+    fixed_keyframes: np.ndarray | None = None,
+) -> LocalSets:
     """The sets X, Y, Z of eq. (11) for the keyframe ``newest``."""
     kf_T_cw = np.asarray(kf_T_cw, dtype=np.float64)
     n = len(kf_T_cw)
@@ -35,13 +42,15 @@ def local_sets(kf_T_cw: np.ndarray, meas_kf: np.ndarray, meas_pt: np.ndarray, n_
     fixed_keyframes = np.zeros(n, bool) if fixed_keyframes is None else np.asarray(fixed_keyframes, bool)
     meas_kf = np.asarray(meas_kf, dtype=np.int64)
     meas_pt = np.asarray(meas_pt, dtype=np.int64)
-    if meas_kf.shape != meas_pt.shape or (meas_kf.size and not (
-            0 <= meas_kf.min() and meas_kf.max() < n and 0 <= meas_pt.min() and meas_pt.max() < n_points)):
+    if meas_kf.shape != meas_pt.shape or (
+        meas_kf.size
+        and not (meas_kf.min() >= 0 and meas_kf.max() < n and meas_pt.min() >= 0 and meas_pt.max() < n_points)
+    ):
         raise InputError("local bundle adjustment: measurement keyframe/point indices out of range")
     centres = camera_centres(kf_T_cw)
     dist = np.linalg.norm(centres - centres[newest], axis=1)
     dist[newest] = np.inf
-    nearest = np.argsort(dist, kind="stable")[:min(neighbours, n - 1)]
+    nearest = np.argsort(dist, kind="stable")[: min(neighbours, n - 1)]
     in_x = np.zeros(n, bool)
     in_x[nearest[~fixed_keyframes[nearest]]] = True
     in_x[newest] = True
@@ -53,11 +62,29 @@ def local_sets(kf_T_cw: np.ndarray, meas_kf: np.ndarray, meas_pt: np.ndarray, n_
     return LocalSets(adjust=in_x & ~fixed_keyframes, fixed=Y, points=Z)
 
 
-def local_bundle_adjust(bundle: Bundle, kf_T_cw, points, meas_kf, meas_pt, meas_xy, meas_level, newest: int,
-                        fixed_keyframes=None, abort: AbortFlag = None) -> tuple[BundleResult, LocalSets]:
+def local_bundle_adjust(
+    bundle: Bundle,
+    kf_T_cw,
+    points,
+    meas_kf,
+    meas_pt,
+    meas_xy,
+    meas_level,
+    newest: int,
+    fixed_keyframes=None,
+    abort: AbortFlag = None,
+) -> tuple[BundleResult, LocalSets]:
     """Run eq. (11) around ``newest``; returns the bundle result (full-size arrays) and the sets used."""
-    sets = local_sets(kf_T_cw, meas_kf, meas_pt, len(points), newest, bundle.cfg.local_neighbours,
-                      fixed_keyframes)
-    result = bundle.adjust(kf_T_cw, points, meas_kf, meas_pt, meas_xy, meas_level, fixed_poses=~sets.adjust,
-                           adjust_points=sets.points, abort=abort)
+    sets = local_sets(kf_T_cw, meas_kf, meas_pt, len(points), newest, bundle.cfg.local_neighbours, fixed_keyframes)
+    result = bundle.adjust(
+        kf_T_cw,
+        points,
+        meas_kf,
+        meas_pt,
+        meas_xy,
+        meas_level,
+        fixed_poses=~sets.adjust,
+        adjust_points=sets.points,
+        abort=abort,
+    )
     return result, sets

@@ -20,14 +20,15 @@ from ..patch.warp import patch_pixel_vectors, search_warps, template_matrices
 
 @dataclass(frozen=True)
 class Refound:
-    tried: np.ndarray   # (n,) bool: could be searched at all (the rest must never be retried)
-    found: np.ndarray   # (n,) bool
-    xy: np.ndarray      # (n, 2) level-0 pixels where found
-    level: np.ndarray   # (n,) search level
+    tried: np.ndarray  # (n,) bool: could be searched at all (the rest must never be retried)
+    found: np.ndarray  # (n,) bool
+    xy: np.ndarray  # (n, 2) level-0 pixels where found
+    level: np.ndarray  # (n,) search level
 
 
-def refind_points(camera, cfg, finder: PatchFinder, kf_T_cw, kf_images, pyramid, T_cw, X, normal, source_kf,
-                  source_level, source_xy) -> Refound:
+def refind_points(
+    camera, cfg, finder: PatchFinder, kf_T_cw, kf_images, pyramid, T_cw, X, normal, source_kf, source_level, source_xy
+) -> Refound:
     """Search the given points (arrays of length n) in the keyframe with pose ``T_cw`` and ``pyramid``."""
     n = len(X)
     Xc = X @ T_cw[:3, :3].T + T_cw[:3, 3]
@@ -41,16 +42,27 @@ def refind_points(camera, cfg, finder: PatchFinder, kf_T_cw, kf_images, pyramid,
     idx = np.flatnonzero(ok)
     if len(idx) == 0:
         return Refound(ok, found, xy, level)
-    right, down = patch_pixel_vectors(camera, kf_T_cw, X[idx], normal[idx], source_kf[idx], source_level[idx],
-                                      source_xy[idx])
+    right, down = patch_pixel_vectors(
+        camera, kf_T_cw, X[idx], normal[idx], source_kf[idx], source_level[idx], source_xy[idx]
+    )
     A, lv = search_warps(camera.kernel_params(), cfg.patch, cfg.image.levels, T_cw, Xc[idx], right, down)
     level[idx] = lv
     ok[idx] &= lv >= 0
     keep = lv >= 0
     idx, A, lv = idx[keep], A[keep], lv[keep]
     if len(idx):
-        m = finder.find(pyramid, kf_images, source_kf[idx], source_level[idx], source_xy[idx],
-                        template_matrices(A, lv), lv, uv[idx], float(cfg.mapper.refind_radius_px), lv > 0)
+        m = finder.find(
+            pyramid,
+            kf_images,
+            source_kf[idx],
+            source_level[idx],
+            source_xy[idx],
+            template_matrices(A, lv),
+            lv,
+            uv[idx],
+            float(cfg.mapper.refind_radius_px),
+            lv > 0,
+        )
         found[idx] = m.found
         xy[idx] = m.xy
         ok[idx] &= m.attempted

@@ -34,8 +34,9 @@ def init_from_stereo(mm: MapMaker, first, second, xy0: np.ndarray, xy1: np.ndarr
     poses = np.stack([np.eye(4), T1])
     meas_kf = np.repeat([0, 1], n)
     meas_pt = np.tile(np.arange(n), 2)
-    res = mm.bundle.adjust(poses, X, meas_kf, meas_pt, np.concatenate([a, b]), np.zeros(2 * n, np.int64),
-                           np.array([True, False]))
+    res = mm.bundle.adjust(
+        poses, X, meas_kf, meas_pt, np.concatenate([a, b]), np.zeros(2 * n, np.int64), np.array([True, False])
+    )
     if res.failed:
         raise InitFailure("bundle adjustment of the initial pair failed")
     bad = np.zeros(n, bool)

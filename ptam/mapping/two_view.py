@@ -21,8 +21,13 @@ from ..geometry import se3, so3
 from ..geometry.triangulation import triangulate_two_view
 from .gric import gric, sampson_sq, transfer_sq
 
-_USAC = {"default": cv2.USAC_DEFAULT, "magsac": cv2.USAC_MAGSAC, "accurate": cv2.USAC_ACCURATE,
-         "prosac": cv2.USAC_PROSAC, "ransac": cv2.RANSAC}
+_USAC = {
+    "default": cv2.USAC_DEFAULT,
+    "magsac": cv2.USAC_MAGSAC,
+    "accurate": cv2.USAC_ACCURATE,
+    "prosac": cv2.USAC_PROSAC,
+    "ransac": cv2.RANSAC,
+}
 
 
 class InitFailure(Exception):
@@ -31,11 +36,11 @@ class InitFailure(Exception):
 
 @dataclass(frozen=True)
 class TwoViewResult:
-    T_c1c0: np.ndarray       # (4, 4) second camera from first camera, unit baseline
-    X0: np.ndarray           # (K, 3) inlier points in the first camera's frame
-    inliers: np.ndarray      # (N,) bool over the input matches
+    T_c1c0: np.ndarray  # (4, 4) second camera from first camera, unit baseline
+    X0: np.ndarray  # (K, 3) inlier points in the first camera's frame
+    inliers: np.ndarray  # (N,) bool over the input matches
     median_parallax_deg: float
-    model: str               # "E" or "H", the GRIC choice
+    model: str  # "E" or "H", the GRIC choice
 
 
 def _triangulate(T: np.ndarray, r0: np.ndarray, r1: np.ndarray):
@@ -56,7 +61,7 @@ def _from_homography(H: np.ndarray, r0: np.ndarray, r1: np.ndarray, inl: np.ndar
         X0, X1 = _triangulate(T, r0[inl], r1[inl])
         front = int(((X0[:, 2] > 0) & (X1[:, 2] > 0)).sum())
         E = so3.hat(T[:3, 3]) @ T[:3, :3]
-        err = float(np.minimum(sampson_sq(E, r0, r1) / sigma ** 2, cap).sum())
+        err = float(np.minimum(sampson_sq(E, r0, r1) / sigma**2, cap).sum())
         scored.append((front, err, T))
     if not scored:
         return None
@@ -88,7 +93,7 @@ def estimate_two_view(camera, xy0: np.ndarray, xy1: np.ndarray, init_cfg) -> Two
         cands["H"] = gric(transfer_sq(H, r0, r1), sigma, "H", c.gric_lambda3)
     if not cands:
         raise InitFailure("neither an essential matrix nor a homography fits the trails")
-    model = min(cands, key=cands.get)
+    model = min(cands, key=lambda k: cands[k])
     cap = c.gric_lambda3 * 2.0
     if model == "E":
         _, R, t, _ = cv2.recoverPose(E, r0, r1, np.eye(3), mask=mask_e.astype(np.uint8).copy())
@@ -118,6 +123,8 @@ def estimate_two_view(camera, xy0: np.ndarray, xy1: np.ndarray, init_cfg) -> Two
     b /= np.linalg.norm(b, axis=1, keepdims=True)
     parallax = float(np.degrees(np.median(np.arccos(np.clip((a * b).sum(axis=1), -1.0, 1.0)))))
     if parallax < c.min_parallax_deg:
-        raise InitFailure(f"too little parallax (median {parallax:.2f} deg < {c.min_parallax_deg} deg, model "
-                          f"{model}): the camera rotated more than it translated")
+        raise InitFailure(
+            f"too little parallax (median {parallax:.2f} deg < {c.min_parallax_deg} deg, model "
+            f"{model}): the camera rotated more than it translated"
+        )
     return TwoViewResult(T, X0, inl, parallax, model)

@@ -43,8 +43,9 @@ class PatchFinder:
         self.cfg = patch_cfg
         self.max_ssd = float(patch_cfg.max_ssd_per_pixel) * patch_cfg.size * patch_cfg.size
 
-    def find(self, pyramid, kf_images, source_kf, source_level, source_xy, M, level, predicted_xy, radius_px,
-             subpix) -> PatchMatches:
+    def find(
+        self, pyramid, kf_images, source_kf, source_level, source_xy, M, level, predicted_xy, radius_px, subpix
+    ) -> PatchMatches:
         """Search patches (source keyframe/level/pixel, template matrix M (n, 2, 2), search ``level`` (n,))
         around level-0 predictions (n, 2) within ``radius_px`` level-0 pixels; refine where ``subpix`` (n,)."""
         n = len(level)
@@ -54,9 +55,14 @@ class PatchFinder:
         did_subpix = np.zeros(n, dtype=bool)
         if n == 0:
             return PatchMatches(found.copy(), found, xy, did_subpix)
-        templates, attempted = make_templates(frozen(kf_images), source_kf.astype(np.int32),
-                                              source_level.astype(np.int8), np.ascontiguousarray(source_xy),
-                                              np.ascontiguousarray(M), cfg.size)
+        templates, attempted = make_templates(
+            frozen(kf_images),
+            source_kf.astype(np.int32),
+            source_level.astype(np.int8),
+            np.ascontiguousarray(source_xy),
+            np.ascontiguousarray(M),
+            cfg.size,
+        )
         ok = np.flatnonzero(attempted)
         lvl = level[ok].astype(np.int32)
         scale = np.exp2(lvl.astype(np.float64))
@@ -67,8 +73,14 @@ class PatchFinder:
         pos = best.astype(np.float64)
         refine = np.flatnonzero(hit & subpix[ok])
         if len(refine):
-            pos_r, converged = refine_subpix(levels, templates[ok[refine]], lvl[refine], pos[refine],
-                                             int(cfg.subpix_iterations), float(cfg.subpix_converge_px))
+            pos_r, converged = refine_subpix(
+                levels,
+                templates[ok[refine]],
+                lvl[refine],
+                pos[refine],
+                int(cfg.subpix_iterations),
+                float(cfg.subpix_converge_px),
+            )
             pos[refine] = pos_r
             hit[refine] = converged
             did_subpix[ok[refine]] = converged

@@ -80,7 +80,7 @@ def search_patches(levels, corners, row_luts, templates, level, center, radius, 
                 x = cs[j, 0]
                 if x > xb:
                     break
-                z = _zmssd(img[y - h:y - h + size, x - h:x - h + size], t, tsq)
+                z = _zmssd(img[y - h : y - h + size, x - h : x - h + size], t, tsq)
                 if z < bs:
                     bs = z
                     bx = x

@@ -79,8 +79,7 @@ def refine_subpix(levels, templates, level, start_xy, max_its, converge_px):
                     for c in range(inner):
                         y = iy + r + 1 - h
                         x = ix + c + 1 - h
-                        isum += (wtl * img[y, x] + wtr * img[y, x + 1] + wbl * img[y + 1, x]
-                                 + wbr * img[y + 1, x + 1])
+                        isum += wtl * img[y, x] + wtr * img[y, x + 1] + wbl * img[y + 1, x] + wbr * img[y + 1, x + 1]
                 m = (isum - tsum) / h22
                 first = False
             b0 = b1 = b2 = 0.0

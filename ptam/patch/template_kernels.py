@@ -43,8 +43,12 @@ def make_templates(kf_images, source_kf, source_level, source_xy, M, size):
                 y0 = min(int(y), H - 2)
                 fx = x - x0
                 fy = y - y0
-                v = ((1.0 - fx) * (1.0 - fy) * img[y0, x0] + fx * (1.0 - fy) * img[y0, x0 + 1]
-                     + (1.0 - fx) * fy * img[y0 + 1, x0] + fx * fy * img[y0 + 1, x0 + 1])
+                v = (
+                    (1.0 - fx) * (1.0 - fy) * img[y0, x0]
+                    + fx * (1.0 - fy) * img[y0, x0 + 1]
+                    + (1.0 - fx) * fy * img[y0 + 1, x0]
+                    + fx * fy * img[y0 + 1, x0 + 1]
+                )
                 out[k, r, c] = v
                 total += v
                 x += m00

@@ -37,9 +37,17 @@ def patch_pixel_vectors(camera, kf_T_cw, X, normal, source_kf, source_level, sou
 
 def search_warps(cam_params, patch_cfg, n_levels: int, T_cw, Xc, right_W, down_W):
     """A (n, 2, 2) and search level (n,), −1 where the warp is rejected (PTAM §5.3)."""
-    A, _, level = warp_matrices(cam_params, np.ascontiguousarray(T_cw, dtype=np.float64), Xc,
-                                np.ascontiguousarray(right_W), np.ascontiguousarray(down_W), n_levels,
-                                float(patch_cfg.det_min), float(patch_cfg.det_max), RULES[patch_cfg.search_level_rule])
+    A, _, level = warp_matrices(
+        cam_params,
+        np.ascontiguousarray(T_cw, dtype=np.float64),
+        Xc,
+        np.ascontiguousarray(right_W),
+        np.ascontiguousarray(down_W),
+        n_levels,
+        float(patch_cfg.det_min),
+        float(patch_cfg.det_max),
+        RULES[patch_cfg.search_level_rule],
+    )
     return A, level
 
 

@@ -38,7 +38,7 @@ def _search_level(det, n_levels, det_min, det_max, rule):
         while d > det_max and level < n_levels - 1:
             level += 1
             d *= 0.25
-    d = det / 4.0 ** level
+    d = det / 4.0**level
     if d < det_min or d > det_max:
         return -1
     return level

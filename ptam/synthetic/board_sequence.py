@@ -33,6 +33,7 @@ from ..config import Config, SynthCalibrationConfig, apply_overrides
 from ..errors import ConfigError, InputError
 from ..eval.tum_io import write_tum
 from ..geometry import se3, so3
+from ..vocabulary import DistortionModel
 from .sequence import VIDEO_FILE, frame_name, write_video
 
 CALIBRATION_SCENE = "calibration"  # the name `ptam synth` knows this generator by
@@ -73,9 +74,12 @@ class PrintedBoard:
         x0, x1, y0, y1 = self.extent()
         t = np.linspace(0.0, 1.0, _EDGE_SAMPLES, endpoint=False)
         xs, ys = x0 + (x1 - x0) * t, y0 + (y1 - y0) * t
-        edges = [np.stack([xs, np.full_like(t, y0)], 1), np.stack([np.full_like(t, x1), ys], 1),
-                 np.stack([xs[::-1] + (x1 - x0) / _EDGE_SAMPLES, np.full_like(t, y1)], 1),
-                 np.stack([np.full_like(t, x0), ys[::-1] + (y1 - y0) / _EDGE_SAMPLES], 1)]
+        edges = [
+            np.stack([xs, np.full_like(t, y0)], 1),
+            np.stack([np.full_like(t, x1), ys], 1),
+            np.stack([xs[::-1] + (x1 - x0) / _EDGE_SAMPLES, np.full_like(t, y1)], 1),
+            np.stack([np.full_like(t, x0), ys[::-1] + (y1 - y0) / _EDGE_SAMPLES], 1),
+        ]
         xy = np.concatenate(edges)
         return np.concatenate([xy, np.zeros((len(xy), 1))], axis=1)
 
@@ -178,7 +182,7 @@ def board_poses(camera: CameraModel, board: PrintedBoard, cfg: SynthCalibrationC
     W, H = camera.width, camera.height
     g = max(2, math.ceil(math.sqrt(cfg.views)))
     cells = np.stack(np.meshgrid(np.arange(g), np.arange(g), indexing="xy"), -1).reshape(-1, 2)
-    cells = np.concatenate([cells] * math.ceil(cfg.views / len(cells)))[:cfg.views]
+    cells = np.concatenate([cells] * math.ceil(cfg.views / len(cells)))[: cfg.views]
     cells = cells[rng.permutation(len(cells))]
     x0, x1, y0, y1 = board.extent()
     centre = np.array([(x0 + x1) / 2, (y0 + y1) / 2, 0.0])
@@ -205,8 +209,10 @@ def board_poses(camera: CameraModel, board: PrintedBoard, cfg: SynthCalibrationC
                 poses.append(T)
                 break
         else:
-            raise InputError(f"synthetic calibration: cannot place a {board.cols}x{board.rows} board in a "
-                             f"{W}x{H} image (lower 'fill' or 'tilt_max_deg')")
+            raise InputError(
+                f"synthetic calibration: cannot place a {board.cols}x{board.rows} board in a "
+                f"{W}x{H} image (lower 'fill' or 'tilt_max_deg')"
+            )
     return np.stack(poses)
 
 
@@ -222,7 +228,7 @@ def default_camera(cfg: SynthCalibrationConfig) -> CameraModel:
     W, H = cfg.size
     f = cfg.focal_rel * W
     cx, cy = (W - 1) / 2.0, (H - 1) / 2.0
-    if cfg.model == "fov":
+    if cfg.model == DistortionModel.FOV:
         return FovCamera(W, H, f, f, cx, cy, cfg.omega)
     return RadTanCamera(W, H, f, f, cx, cy, *cfg.radtan)
 
@@ -299,8 +305,9 @@ def load_calibration_scene(name_or_path: str, cfg: Config) -> tuple[SynthCalibra
     return section, camera
 
 
-def write_calibration_sequence(seq: CalibrationSequence, section: SynthCalibrationConfig, out_dir: str,
-                               video: bool = False) -> None:
+def write_calibration_sequence(
+    seq: CalibrationSequence, section: SynthCalibrationConfig, out_dir: str, video: bool = False
+) -> None:
     """TUM layout: ``rgb/NNNNNN.png``, ``rgb.txt``, ``camera.yaml`` (the true camera), ``groundtruth.txt``
     (camera poses in the board frame), ``corners.txt`` (true corner pixels, one view per line),
     ``scene.yaml`` (renders the same sequence again) and, with ``video``, ``video.avi``."""
@@ -317,14 +324,21 @@ def write_calibration_sequence(seq: CalibrationSequence, section: SynthCalibrati
     with open(os.path.join(out_dir, "rgb.txt"), "w") as f:
         f.write("# timestamp filename\n")
         f.writelines(f"{t:.6f} {name}\n" for t, name in zip(stamps, names))
-    write_tum(os.path.join(out_dir, "groundtruth.txt"), stamps, se3.inv(seq.poses_T_cb),
-              header="world = the board frame (x along its rows, y down its columns, z through it)")
-    np.savetxt(os.path.join(out_dir, "corners.txt"), seq.corners().reshape(len(seq.images), -1), fmt="%.6f",
-               header=f"true inner-corner pixels u0 v0 u1 v1 ... of a {seq.board.cols}x{seq.board.rows} board")
+    write_tum(
+        os.path.join(out_dir, "groundtruth.txt"),
+        stamps,
+        se3.inv(seq.poses_T_cb),
+        header="world = the board frame (x along its rows, y down its columns, z through it)",
+    )
+    np.savetxt(
+        os.path.join(out_dir, "corners.txt"),
+        seq.corners().reshape(len(seq.images), -1),
+        fmt="%.6f",
+        header=f"true inner-corner pixels u0 v0 u1 v1 ... of a {seq.board.cols}x{seq.board.rows} board",
+    )
     save_camera(seq.camera, os.path.join(out_dir, "camera.yaml"))
     with open(os.path.join(out_dir, "scene.yaml"), "w") as f:
-        yaml.safe_dump({"calibration": dataclasses.asdict(section), "camera": seq.camera.to_dict()}, f,
-                       sort_keys=False)
+        yaml.safe_dump({"calibration": dataclasses.asdict(section), "camera": seq.camera.to_dict()}, f, sort_keys=False)
     if video:
         write_video(Path(out_dir) / VIDEO_FILE, seq.images, section.fps, seq.camera.size)
 
@@ -335,5 +349,7 @@ def synth_calibration(scene: str, out_dir: str, cfg: Config, video: bool = False
     seq = render_calibration(section, camera)
     write_calibration_sequence(seq, section, out_dir, video)
     b = seq.board
-    return (f"wrote {out_dir}: {len(seq.images)} views of a {b.cols}x{b.rows} board ({b.square * 1000:g} mm squares) "
-            f"through a {camera.model} camera {camera.width}x{camera.height} (true calibration in camera.yaml)")
+    return (
+        f"wrote {out_dir}: {len(seq.images)} views of a {b.cols}x{b.rows} board ({b.square * 1000:g} mm squares) "
+        f"through a {camera.model} camera {camera.width}x{camera.height} (true calibration in camera.yaml)"
+    )

@@ -27,7 +27,7 @@ def contact_sheet(sequence_dir, out_png, cols: int = 4, rows: int = 3, thumb: tu
         cv2.putText(t, f"frame {i}", (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.6, 0, 3, cv2.LINE_AA)
         cv2.putText(t, f"frame {i}", (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.6, 255, 1, cv2.LINE_AA)
         r, c = divmod(k, cols)
-        sheet[r * h:(r + 1) * h, c * w:(c + 1) * w] = t
+        sheet[r * h : (r + 1) * h, c * w : (c + 1) * w] = t
     out_png = Path(out_png)
     if not cv2.imwrite(str(out_png), sheet):
         raise InputError(f"cannot write {out_png}")

@@ -55,32 +55,41 @@ def rectangle_from_spec(d: dict, where: str) -> Rectangle:
     if unknown:
         raise InputError(f"{where}: unknown rectangle key(s) {', '.join(sorted(unknown))}")
     if "corners" in d:
-        c = d["corners"]
-        if not isinstance(c, (list, tuple)) or len(c) != 4:
-            raise InputError(f"{where}: 'corners' must list four 3-D points")
-        P = np.stack([_vec(p, where, "corners") for p in c])
-        ea, eb = P[1] - P[0], P[3] - P[0]
-        wa, wb = np.linalg.norm(ea), np.linalg.norm(eb)
-        if min(wa, wb) <= 0:
-            raise InputError(f"{where}: degenerate rectangle (repeated corners)")
-        if (abs(ea @ eb) > _RIGHT_ANGLE_TOL * wa * wb
-                or np.linalg.norm(P[2] - (P[0] + ea + eb)) > _RIGHT_ANGLE_TOL * max(wa, wb)):
-            raise InputError(f"{where}: the four corners are not a rectangle (list them in order round the edge)")
-        return Rectangle(name, P[0], ea / wa, eb / wb, (float(wa), float(wb)), d["texture"])
+        return _from_corners(d, name, where)
     if {"center", "axes", "size"} <= set(d):
-        c = _vec(d["center"], where, "center")
-        ax = d["axes"]
-        if not isinstance(ax, (list, tuple)) or len(ax) != 2:
-            raise InputError(f"{where}: 'axes' must be two 3-D directions")
-        ea, eb = (_vec(v, where, "axes") for v in ax)
-        if min(np.linalg.norm(ea), np.linalg.norm(eb)) <= 0:
-            raise InputError(f"{where}: 'axes' must be non-zero")
-        ea, eb = ea / np.linalg.norm(ea), eb / np.linalg.norm(eb)
-        if abs(ea @ eb) > _RIGHT_ANGLE_TOL:
-            raise InputError(f"{where}: 'axes' must be perpendicular")
-        size = _vec(d["size"], where, "size", 2)
-        if np.any(size <= 0):
-            raise InputError(f"{where}: 'size' must be positive")
-        origin = c - 0.5 * size[0] * ea - 0.5 * size[1] * eb
-        return Rectangle(name, origin, ea, eb, (float(size[0]), float(size[1])), d["texture"])
+        return _from_centre(d, name, where)
     raise InputError(f"{where}: give either 'corners' or 'center', 'axes' and 'size'")
+
+
+def _from_corners(d: dict, name: str, where: str) -> Rectangle:
+    c = d["corners"]
+    if not isinstance(c, (list, tuple)) or len(c) != 4:
+        raise InputError(f"{where}: 'corners' must list four 3-D points")
+    P = np.stack([_vec(p, where, "corners") for p in c])
+    ea, eb = P[1] - P[0], P[3] - P[0]
+    wa, wb = np.linalg.norm(ea), np.linalg.norm(eb)
+    if min(wa, wb) <= 0:
+        raise InputError(f"{where}: degenerate rectangle (repeated corners)")
+    if abs(ea @ eb) > _RIGHT_ANGLE_TOL * wa * wb or np.linalg.norm(P[2] - (P[0] + ea + eb)) > _RIGHT_ANGLE_TOL * max(
+        wa, wb
+    ):
+        raise InputError(f"{where}: the four corners are not a rectangle (list them in order round the edge)")
+    return Rectangle(name, P[0], ea / wa, eb / wb, (float(wa), float(wb)), d["texture"])
+
+
+def _from_centre(d: dict, name: str, where: str) -> Rectangle:
+    c = _vec(d["center"], where, "center")
+    ax = d["axes"]
+    if not isinstance(ax, (list, tuple)) or len(ax) != 2:
+        raise InputError(f"{where}: 'axes' must be two 3-D directions")
+    ea, eb = (_vec(v, where, "axes") for v in ax)
+    if min(np.linalg.norm(ea), np.linalg.norm(eb)) <= 0:
+        raise InputError(f"{where}: 'axes' must be non-zero")
+    ea, eb = ea / np.linalg.norm(ea), eb / np.linalg.norm(eb)
+    if abs(ea @ eb) > _RIGHT_ANGLE_TOL:
+        raise InputError(f"{where}: 'axes' must be perpendicular")
+    size = _vec(d["size"], where, "size", 2)
+    if np.any(size <= 0):
+        raise InputError(f"{where}: 'size' must be positive")
+    origin = c - 0.5 * size[0] * ea - 0.5 * size[1] * eb
+    return Rectangle(name, origin, ea, eb, (float(size[0]), float(size[1])), d["texture"])

@@ -43,8 +43,10 @@ class Renderer:
         self.camera = camera
         self.background = float(background)
         self.sample_step = 1.0 / supersample
-        textures = [_texture(json.dumps(r.texture, sort_keys=True), r.size[0], r.size[1], f"rectangle '{r.name}'")
-                    for r in rectangles]
+        textures = [
+            _texture(json.dumps(r.texture, sort_keys=True), r.size[0], r.size[1], f"rectangle '{r.name}'")
+            for r in rectangles
+        ]
         self.atlas = TextureAtlas(textures)
         self.rects = np.ascontiguousarray(np.stack([r.packed() for r in rectangles]))
         self.rect_tex = np.arange(len(rectangles), dtype=np.int64)
@@ -63,8 +65,20 @@ class Renderer:
 
     def kernel_args(self, poses_T_wc: np.ndarray) -> tuple:
         a = self.atlas
-        return (self.rays, self.crays, self.drays, self.sample_step, np.ascontiguousarray(poses_T_wc, dtype=np.float64),
-                self.rects, self.rect_tex, a.data, a.info, a.n_levels, a.texel, self.background)
+        return (
+            self.rays,
+            self.crays,
+            self.drays,
+            self.sample_step,
+            np.ascontiguousarray(poses_T_wc, dtype=np.float64),
+            self.rects,
+            self.rect_tex,
+            a.data,
+            a.info,
+            a.n_levels,
+            a.texel,
+            self.background,
+        )
 
     def render(self, poses_T_wc: np.ndarray) -> np.ndarray:
         """Mean shade (H, W) float32 over the sub-frame poses (P, 4, 4)."""

@@ -73,8 +73,9 @@ def _mip_level(r, drays, y, x, cx, cy, cz, scale):
 
 
 @njit(nogil=True, cache=True)
-def render(rays, crays, drays, sample_step, poses, rects, rect_tex, tex_data, tex_info, tex_levels, tex_texel,
-           background, out):
+def render(
+    rays, crays, drays, sample_step, poses, rects, rect_tex, tex_data, tex_info, tex_levels, tex_texel, background, out
+):
     """Fill ``out`` (H, W) float32 with the mean shade of every pixel's samples over all sub-frames."""
     H, W, S = rays.shape[0], rays.shape[1], rays.shape[2]
     P = poses.shape[0]
@@ -133,8 +134,7 @@ def render(rays, crays, drays, sample_step, poses, rects, rect_tex, tex_data, te
                         continue
                     t = rect_tex[kb]
                     if lam_k[kb] < 0.0:
-                        lam_k[kb] = _mip_level(rc[p, kb], drays, y, x, cx, cy, cz,
-                                               sample_step / tex_texel[t])
+                        lam_k[kb] = _mip_level(rc[p, kb], drays, y, x, cx, cy, cz, sample_step / tex_texel[t])
                     lam = lam_k[kb]
                     top = tex_levels[t] - 1
                     if lam >= top:
@@ -164,8 +164,14 @@ def intersect_rays(origins, dirs, rects):
         q = t[..., None] * dirs[:, None, :] - diff
         a = np.einsum("nkc,kc->nk", q, rects[:, 3:6])
         b = np.einsum("nkc,kc->nk", q, rects[:, 6:9])
-        ok = ((np.abs(nd) >= _EPS_DENOM) & (t > _EPS_T) & (a >= 0.0) & (a <= rects[:, 12])
-              & (b >= 0.0) & (b <= rects[:, 13]))
+        ok = (
+            (np.abs(nd) >= _EPS_DENOM)
+            & (t > _EPS_T)
+            & (a >= 0.0)
+            & (a <= rects[:, 12])
+            & (b >= 0.0)
+            & (b <= rects[:, 13])
+        )
     t = np.where(ok, t, np.inf)
     k = np.argmin(t, axis=1)
     rows = np.arange(len(dirs))

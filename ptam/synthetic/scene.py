@@ -45,8 +45,7 @@ from .trajectory import Jitter, KeyPose, Trajectory, look_at, path_length
 
 RENDER_DEFAULTS = {"supersample": 2, "background": 0.0}
 _TOP_KEYS = {"description", "camera", "frames", "fps", "start_time", "rectangles", "trajectory", "render"}
-_RENDER_KEYS = {"supersample", "background", "optics_blur_px", "noise", "motion_blur", "brightness",
-                "black_frames"}
+_RENDER_KEYS = {"supersample", "background", "optics_blur_px", "noise", "motion_blur", "brightness", "black_frames"}
 
 
 def _num(d: dict, key: str, where: str, lo=-math.inf, hi=math.inf, default=None, integer=False):
@@ -55,8 +54,13 @@ def _num(d: dict, key: str, where: str, lo=-math.inf, hi=math.inf, default=None,
             raise InputError(f"{where}: missing '{key}'")
         return default
     v = d[key]
-    ok = (not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v) and lo <= v <= hi
-          and (not integer or v == int(v)))
+    ok = (
+        not isinstance(v, bool)
+        and isinstance(v, (int, float))
+        and math.isfinite(v)
+        and lo <= v <= hi
+        and (not integer or v == int(v))
+    )
     if not ok:
         kind = "an integer" if integer else "a number"
         raise InputError(f"{where}: '{key}' must be {kind} in [{lo:g}, {hi:g}], got {v!r}")
@@ -112,14 +116,21 @@ def _trajectory(d: dict, fps: float, where: str) -> Trajectory:
         j = _mapping(t, "jitter", where, {"seed", "position_m", "rotation_deg", "frequency_hz", "components"})
         wj = f"{where}.jitter"
         fr = j.get("frequency_hz")
-        if not (isinstance(fr, list) and len(fr) == 2 and all(isinstance(x, (int, float)) for x in fr)
-                and 0 < fr[0] <= fr[1]):
+        if not (
+            isinstance(fr, list)
+            and len(fr) == 2
+            and all(isinstance(x, (int, float)) for x in fr)
+            and 0 < fr[0] <= fr[1]
+        ):
             raise InputError(f"{wj}: 'frequency_hz' must be [low, high] with 0 < low <= high")
-        jitter = Jitter(seed=_num(j, "seed", wj, lo=0, integer=True),
-                        position_m=_num(j, "position_m", wj, lo=0.0),
-                        rotation_rad=math.radians(_num(j, "rotation_deg", wj, lo=0.0)),
-                        freq_lo_hz=float(fr[0]), freq_hi_hz=float(fr[1]),
-                        components=_num(j, "components", wj, lo=1, integer=True))
+        jitter = Jitter(
+            seed=_num(j, "seed", wj, lo=0, integer=True),
+            position_m=_num(j, "position_m", wj, lo=0.0),
+            rotation_rad=math.radians(_num(j, "rotation_deg", wj, lo=0.0)),
+            freq_lo_hz=float(fr[0]),
+            freq_hi_hz=float(fr[1]),
+            components=_num(j, "components", wj, lo=1, integer=True),
+        )
     return Trajectory(poses, jitter, fps)
 
 
@@ -145,21 +156,29 @@ class Scene:
         rects = spec.get("rectangles")
         if not isinstance(rects, list) or not rects:
             raise InputError(f"{where}: 'rectangles' must be a non-empty list")
-        self.rectangles: list[Rectangle] = [rectangle_from_spec(r, f"{where}.rectangles[{i}]")
-                                            for i, r in enumerate(rects)]
+        self.rectangles: list[Rectangle] = [
+            rectangle_from_spec(r, f"{where}.rectangles[{i}]") for i, r in enumerate(rects)
+        ]
         for i, r in enumerate(self.rectangles):
             check_texture(r.texture, f"{where}.rectangles[{i}]")
         self._packed = np.stack([r.packed() for r in self.rectangles])
         self.trajectory = _trajectory(spec, self.fps, where)
         if self.n_frames - 1 > self.trajectory.last_frame:
-            raise InputError(f"{where}: the trajectory's keys end at frame {self.trajectory.last_frame:g} "
-                             f"but the scene has {self.n_frames} frames")
+            raise InputError(
+                f"{where}: the trajectory's keys end at frame {self.trajectory.last_frame:g} "
+                f"but the scene has {self.n_frames} frames"
+            )
         self.poses_T_wc = self.trajectory.poses(np.arange(self.n_frames, dtype=np.float64))
+        self._read_render(spec, where)
+        self._renderer = None
+        self._lock = threading.Lock()
 
+    def _read_render(self, spec: dict, where: str) -> None:
+        """The ``render`` section: supersampling, background, lens blur, noise, motion blur, brightness, black
+        frames."""
         r = _mapping(spec, "render", where, _RENDER_KEYS)
         wr = f"{where}.render"
-        self.supersample = _num(r, "supersample", wr, lo=1, hi=8, integer=True,
-                                default=RENDER_DEFAULTS["supersample"])
+        self.supersample = _num(r, "supersample", wr, lo=1, hi=8, integer=True, default=RENDER_DEFAULTS["supersample"])
         self.background = _num(r, "background", wr, lo=0.0, hi=255.0, default=RENDER_DEFAULTS["background"])
         self.optics_blur = _num(r, "optics_blur_px", wr, lo=0.0, hi=10.0, default=0.0)
         noise = _mapping(r, "noise", wr, {"sigma", "seed"})
@@ -176,12 +195,14 @@ class Scene:
         if not isinstance(black, list):
             raise InputError(f"{wr}: 'black_frames' must be a list of [first, last] frame ranges")
         for rng in black:
-            if (not isinstance(rng, list) or len(rng) != 2 or not all(isinstance(x, int) for x in rng)
-                    or not 0 <= rng[0] <= rng[1]):
+            if (
+                not isinstance(rng, list)
+                or len(rng) != 2
+                or not all(isinstance(x, int) for x in rng)
+                or not 0 <= rng[0] <= rng[1]
+            ):
                 raise InputError(f"{wr}: black_frames entry {rng!r} must be [first, last] frame numbers")
-            self.black[rng[0]:rng[1] + 1] = True
-        self._renderer = None
-        self._lock = threading.Lock()
+            self.black[rng[0] : rng[1] + 1] = True
 
     def prepare(self) -> Renderer:
         """The renderer, built on first use: textures take a few seconds; rendering threads then only read."""
@@ -202,7 +223,7 @@ class Scene:
         """T_wc (P, 4, 4) of the motion-blur sub-frames of frame i, spread evenly over the exposure."""
         P = self.blur_subframes
         if P == 1 or self.blur_exposure == 0.0:
-            return self.poses_T_wc[i:i + 1]
+            return self.poses_T_wc[i : i + 1]
         t = i + (np.arange(P) / (P - 1) - 0.5) * self.blur_exposure
         return self.trajectory.poses(t)
 
@@ -223,8 +244,9 @@ class Scene:
             return np.zeros((self.camera.height, self.camera.width), dtype=np.uint8)
         img = self.render_view(self.subframe_poses(i))
         if self.brightness_amplitude > 0:
-            img *= np.float32(1.0 + self.brightness_amplitude
-                              * math.sin(2.0 * math.pi * self.timestamps[i] / self.brightness_period))
+            img *= np.float32(
+                1.0 + self.brightness_amplitude * math.sin(2.0 * math.pi * self.timestamps[i] / self.brightness_period)
+            )
         if self.noise_sigma > 0:
             rng = np.random.default_rng([self.noise_seed, i])
             img += np.float32(self.noise_sigma) * rng.standard_normal(img.shape, dtype=np.float32)

@@ -57,8 +57,9 @@ def write_video(path: Path, frames, fps: float, size: tuple[int, int]) -> None:
         writer.release()
 
 
-def write_sequence(scene: Scene, out: str | os.PathLike, video: bool = False, threads: int = 2,
-                   progress: bool = True) -> Path:
+def write_sequence(
+    scene: Scene, out: str | os.PathLike, video: bool = False, threads: int = 2, progress: bool = True
+) -> Path:
     """Render every frame of ``scene`` into ``out`` (created; must not hold a sequence already)."""
     out = Path(out)
     (out / "rgb").mkdir(parents=True, exist_ok=True)
@@ -90,8 +91,12 @@ def write_sequence(scene: Scene, out: str | os.PathLike, video: bool = False, th
     with open(out / "rgb.txt", "w") as f:
         f.write(f"# grey images of synthetic scene '{scene.name}'\n# timestamp filename\n")
         f.writelines(f"{t:.9f} {frame_name(i)}\n" for i, t in enumerate(scene.timestamps))
-    write_tum(out / "groundtruth.txt", scene.timestamps, scene.poses_T_wc,
-              header=f"ground truth of synthetic scene '{scene.name}'")
+    write_tum(
+        out / "groundtruth.txt",
+        scene.timestamps,
+        scene.poses_T_wc,
+        header=f"ground truth of synthetic scene '{scene.name}'",
+    )
     save_camera(cam, out / "camera.yaml")
     with open(out / "scene.yaml", "w") as f:
         f.write(f"# scene '{scene.name}' (hash {scene.hash}), resolved\n")

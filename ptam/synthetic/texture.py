@@ -15,6 +15,7 @@ Everything is drawn from ``numpy.random.default_rng(seed)``, so the same spec gi
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -40,11 +41,15 @@ def _number(spec, key, where, lo=-math.inf, hi=math.inf):
 
 def _pair(spec, key, where, lo, hi):
     v = spec.get(key)
-    if (not isinstance(v, (list, tuple)) or len(v) != 2
-            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)
-            or not (lo <= v[0] <= v[1] <= hi)):
-        raise InputError(f"{where}: texture '{key}' must be [low, high] with {lo:g} <= low <= high <= {hi:g}, "
-                         f"got {v!r}")
+    if (
+        not isinstance(v, (list, tuple))
+        or len(v) != 2
+        or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)
+        or not (lo <= v[0] <= v[1] <= hi)
+    ):
+        raise InputError(
+            f"{where}: texture '{key}' must be [low, high] with {lo:g} <= low <= high <= {hi:g}, got {v!r}"
+        )
     return float(v[0]), float(v[1])
 
 
@@ -68,10 +73,16 @@ def check_texture(spec: dict, where: str) -> dict:
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise InputError(f"{where}: texture 'seed' must be a non-negative integer, got {seed!r}")
     texel = _number(spec, "texel", where, 1e-4, 10.0)
-    return {"type": kind, "seed": seed, "texel": texel, "sizes": _pair(spec, "sizes", where, texel, 1e3),
-            "grey": _pair(spec, "grey", where, 0.0, 255.0), "coverage": _number(spec, "coverage", where, 0.1, 100.0),
-            "exponent": _number(spec, "exponent", where, 0.0, 10.0),
-            "detail": _number(spec, "detail", where, 0.0, 128.0)}
+    return {
+        "type": kind,
+        "seed": seed,
+        "texel": texel,
+        "sizes": _pair(spec, "sizes", where, texel, 1e3),
+        "grey": _pair(spec, "grey", where, 0.0, 255.0),
+        "coverage": _number(spec, "coverage", where, 0.1, 100.0),
+        "exponent": _number(spec, "exponent", where, 0.0, 10.0),
+        "detail": _number(spec, "detail", where, 0.0, 128.0),
+    }
 
 
 def make_texture(spec: dict, width_m: float, height_m: float, where: str) -> tuple[np.ndarray, float]:
@@ -90,7 +101,7 @@ def _radii(u, lo, hi, exponent):
     if abs(exponent - 1.0) < 1e-9:
         return lo * (hi / lo) ** u
     e = 1.0 - exponent
-    return (lo ** e + u * (hi ** e - lo ** e)) ** (1.0 / e)
+    return (lo**e + u * (hi**e - lo**e)) ** (1.0 / e)
 
 
 def _dead_leaves(spec: dict, W: int, H: int) -> np.ndarray:
@@ -99,49 +110,79 @@ def _dead_leaves(spec: dict, W: int, H: int) -> np.ndarray:
     coverage, exponent, detail = spec["coverage"], spec["exponent"], spec["detail"]
     rng = np.random.default_rng(spec["seed"])
     img = np.full((H, W), round(0.5 * (g_lo + g_hi)), dtype=np.uint8)
-    scale = 1 << _SUBPIXEL_BITS
     target = coverage * W * H
     painted = 0.0
     while painted < target:
-        n = _BATCH
-        r = _radii(rng.random(n), r_lo / texel, r_hi / texel, exponent)
-        aspect = rng.uniform(_ASPECT_MIN, 1.0, n)
-        kind = rng.integers(0, 3, n)  # 0 rectangle, 1 triangle, 2 ellipse
-        # Centres may fall a radius outside the rectangle so the borders are covered as densely as the middle.
-        cx = rng.uniform(-r, W + r)
-        cy = rng.uniform(-r, H + r)
-        ang = rng.uniform(0.0, 2.0 * np.pi, n)
-        # Triangle vertices a third of a turn apart, jittered: irregular but never slivers.
-        tri = ang[:, None] + (2.0 * np.pi / 3.0) * (np.arange(3) + rng.uniform(-_TRI_JITTER, _TRI_JITTER, (n, 3)))
-        grey = rng.integers(round(g_lo), round(g_hi) + 1, n)
-        area = np.where(kind == 0, 4.0 * aspect, np.where(kind == 1, _TRI_AREA, np.pi * aspect)) * r * r
-        csum = painted + np.cumsum(area * np.clip(  # only the part inside the texture counts as coverage
-            (np.minimum(cx + r, W) - np.maximum(cx - r, 0)) * (np.minimum(cy + r, H) - np.maximum(cy - r, 0))
-            / (4.0 * r * r), 0.0, 1.0))
-        n = int(min(n, np.searchsorted(csum, target) + 1))
+        leaf = _leaf_batch(rng, W, H, r_lo / texel, r_hi / texel, exponent, g_lo, g_hi)
+        r, cx, cy = leaf.r, leaf.cx, leaf.cy
+        area = np.where(leaf.kind == 0, 4.0 * leaf.aspect, np.where(leaf.kind == 1, _TRI_AREA, np.pi * leaf.aspect))
+        inside = (np.minimum(cx + r, W) - np.maximum(cx - r, 0)) * (np.minimum(cy + r, H) - np.maximum(cy - r, 0))
+        # only the part inside the texture counts as coverage
+        csum = painted + np.cumsum(area * r * r * np.clip(inside / (4.0 * r * r), 0.0, 1.0))
+        n = int(min(_BATCH, np.searchsorted(csum, target) + 1))
         painted = csum[n - 1]
-        ca, sa = np.cos(ang), np.sin(ang)
-        rect = np.stack([np.stack([sx * r, sy * r * aspect], -1) for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))],
-                        axis=1)  # (n, 4, 2) before rotation
-        rect = np.stack([ca[:, None] * rect[..., 0] - sa[:, None] * rect[..., 1],
-                         sa[:, None] * rect[..., 0] + ca[:, None] * rect[..., 1]], axis=-1)
-        rect = np.round((rect + np.stack([cx, cy], -1)[:, None]) * scale).astype(np.int32)
-        tri_pts = np.round(np.stack([cx[:, None] + r[:, None] * np.cos(tri), cy[:, None] + r[:, None] * np.sin(tri)],
-                                    axis=-1) * scale).astype(np.int32)
-        cen = np.round(np.stack([cx, cy], -1) * scale).astype(np.int32)
-        axes = np.round(np.stack([r, r * aspect], -1) * scale).astype(np.int32)
-        deg = np.degrees(ang)
-        for i in range(n):  # one-off generation; painter's order is the dead-leaves occlusion
-            g = int(grey[i])
-            if kind[i] == 0:
-                cv2.fillConvexPoly(img, rect[i], g, cv2.LINE_8, _SUBPIXEL_BITS)
-            elif kind[i] == 1:
-                cv2.fillConvexPoly(img, tri_pts[i], g, cv2.LINE_8, _SUBPIXEL_BITS)
-            else:
-                cv2.ellipse(img, cen[i], axes[i], deg[i], 0.0, 360.0, g, -1, cv2.LINE_8, _SUBPIXEL_BITS)
+        _paint_leaves(img, leaf, n)
     tex = img.astype(np.float32)
     if detail > 0:
         noise = cv2.GaussianBlur(rng.standard_normal((H, W)).astype(np.float32), (0, 0), _DETAIL_BLUR_TEXELS)
         tex += noise * np.float32(detail / max(float(noise.std()), 1e-12))
         np.clip(tex, 0.0, 255.0, out=tex)
     return tex
+
+
+@dataclass
+class _Leaves:
+    r: np.ndarray
+    aspect: np.ndarray
+    kind: np.ndarray  # 0 rectangle, 1 triangle, 2 ellipse
+    cx: np.ndarray
+    cy: np.ndarray
+    ang: np.ndarray
+    tri: np.ndarray
+    grey: np.ndarray
+
+
+def _leaf_batch(rng, W: int, H: int, r_lo: float, r_hi: float, exponent: float, g_lo, g_hi) -> _Leaves:
+    n = _BATCH
+    r = _radii(rng.random(n), r_lo, r_hi, exponent)
+    aspect = rng.uniform(_ASPECT_MIN, 1.0, n)
+    kind = rng.integers(0, 3, n)
+    # Centres may fall a radius outside the rectangle so the borders are covered as densely as the middle.
+    cx = rng.uniform(-r, W + r)
+    cy = rng.uniform(-r, H + r)
+    ang = rng.uniform(0.0, 2.0 * np.pi, n)
+    # Triangle vertices a third of a turn apart, jittered: irregular but never slivers.
+    tri = ang[:, None] + (2.0 * np.pi / 3.0) * (np.arange(3) + rng.uniform(-_TRI_JITTER, _TRI_JITTER, (n, 3)))
+    grey = rng.integers(round(g_lo), round(g_hi) + 1, n)
+    return _Leaves(r, aspect, kind, cx, cy, ang, tri, grey)
+
+
+def _paint_leaves(img: np.ndarray, leaf: _Leaves, n: int) -> None:
+    """The first ``n`` leaves of the batch, in painter's order (the dead-leaves occlusion), at sub-pixel accuracy."""
+    scale = 1 << _SUBPIXEL_BITS
+    r, aspect, cx, cy, ang = leaf.r, leaf.aspect, leaf.cx, leaf.cy, leaf.ang
+    ca, sa = np.cos(ang), np.sin(ang)
+    corners = ((-1, -1), (1, -1), (1, 1), (-1, 1))
+    rect = np.stack([np.stack([sx * r, sy * r * aspect], -1) for sx, sy in corners], axis=1)  # before rotation
+    rect = np.stack(
+        [
+            ca[:, None] * rect[..., 0] - sa[:, None] * rect[..., 1],
+            sa[:, None] * rect[..., 0] + ca[:, None] * rect[..., 1],
+        ],
+        axis=-1,
+    )
+    rect = np.round((rect + np.stack([cx, cy], -1)[:, None]) * scale).astype(np.int32)
+    tri = leaf.tri
+    tri_xy = np.stack([cx[:, None] + r[:, None] * np.cos(tri), cy[:, None] + r[:, None] * np.sin(tri)], axis=-1)
+    tri_pts = np.round(tri_xy * scale).astype(np.int32)
+    cen = np.round(np.stack([cx, cy], -1) * scale).astype(np.int32)
+    axes = np.round(np.stack([r, r * aspect], -1) * scale).astype(np.int32)
+    deg = np.degrees(ang)
+    for i in range(n):  # one-off generation, not a per-frame path
+        g = int(leaf.grey[i])
+        if leaf.kind[i] == 0:
+            cv2.fillConvexPoly(img, rect[i], g, cv2.LINE_8, _SUBPIXEL_BITS)
+        elif leaf.kind[i] == 1:
+            cv2.fillConvexPoly(img, tri_pts[i], g, cv2.LINE_8, _SUBPIXEL_BITS)
+        else:
+            cv2.ellipse(img, cen[i], axes[i], deg[i], 0.0, 360.0, g, -1, cv2.LINE_8, _SUBPIXEL_BITS)

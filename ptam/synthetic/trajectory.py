@@ -74,7 +74,7 @@ class Trajectory:
     def __init__(self, keys: list[KeyPose], jitter: Jitter | None = None, fps: float = 30.0):
         f, p, R = [], [], []
         for k in keys:
-            for frame in ((k.frame, k.frame + k.hold) if k.hold > 0 else (k.frame,)):
+            for frame in (k.frame, k.frame + k.hold) if k.hold > 0 else (k.frame,):
                 f.append(frame)
                 p.append(k.position)
                 R.append(k.R_wc)
@@ -89,15 +89,17 @@ class Trajectory:
         dt = np.diff(self.frames)[:, None]
         self.v = _pchip_tangents(np.diff(self.positions, axis=0) / dt, dt)
         self.w = _pchip_tangents(  # world-frame angular velocity per frame
-            so3.log(self.rotations[1:] @ np.swapaxes(self.rotations[:-1], -1, -2)) / dt, dt)
+            so3.log(self.rotations[1:] @ np.swapaxes(self.rotations[:-1], -1, -2)) / dt, dt
+        )
         if jitter is not None:
             rng = np.random.default_rng(jitter.seed)
             shape = (6, jitter.components)
             self._jf = rng.uniform(jitter.freq_lo_hz, jitter.freq_hi_hz, shape) / self.fps  # cycles per frame
             self._jphase = rng.uniform(0.0, 2.0 * np.pi, shape)
             # A unit sinusoid has variance 1/2, so K of them scaled by sqrt(2/K) have unit variance.
-            self._jamp = np.sqrt(2.0 / jitter.components) * np.repeat(
-                [jitter.position_m, jitter.rotation_rad], 3)[:, None]
+            self._jamp = (
+                np.sqrt(2.0 / jitter.components) * np.repeat([jitter.position_m, jitter.rotation_rad], 3)[:, None]
+            )
 
     @property
     def last_frame(self) -> float:

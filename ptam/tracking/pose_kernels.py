@@ -109,8 +109,9 @@ def _linearise(cam, T, X, uv, J, valid):
 
 
 @njit(nogil=True, cache=True)
-def pose_irls(cam, T_cw, X, meas, inv_sigma, n_iters, relinearise_every, min_sigma, prior,
-              override_after, override_sigma_sq):
+def pose_irls(
+    cam, T_cw, X, meas, inv_sigma, n_iters, relinearise_every, min_sigma, prior, override_after, override_sigma_sq
+):
     """Robust pose from world points X (n, 3) measured at level-0 pixels meas (n, 2) with 1/σ inv_sigma (n,).
 
     ``override_sigma_sq`` > 0 replaces the median-based c² in iterations after ``override_after`` (PTAM code's

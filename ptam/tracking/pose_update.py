@@ -23,7 +23,16 @@ def update_pose(cam_params, tracker_cfg, T_cw, X, xy, level, coarse: bool):
     else:
         override = 0.0
     inv_sigma = np.exp2(-np.asarray(level, dtype=np.float64))
-    return pose_irls(cam_params, np.ascontiguousarray(T_cw, dtype=np.float64), np.ascontiguousarray(X),
-                     np.ascontiguousarray(xy, dtype=np.float64), inv_sigma, int(cfg.irls_iterations),
-                     1 if coarse else int(cfg.relinearise_every), float(cfg.min_tukey_sigma),
-                     float(cfg.pose_prior), int(cfg.tukey_override_after), float(override))
+    return pose_irls(
+        cam_params,
+        np.ascontiguousarray(T_cw, dtype=np.float64),
+        np.ascontiguousarray(X),
+        np.ascontiguousarray(xy, dtype=np.float64),
+        inv_sigma,
+        int(cfg.irls_iterations),
+        1 if coarse else int(cfg.relinearise_every),
+        float(cfg.min_tukey_sigma),
+        float(cfg.pose_prior),
+        int(cfg.tukey_override_after),
+        float(override),
+    )

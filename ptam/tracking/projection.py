@@ -23,9 +23,16 @@ def project_points(cam_params, width: int, height: int, tracker_cfg, T_cw, X, id
     ``valid_radius_factor`` × the image's largest radius, inside the image shrunk by ``image_margin_px``.
     Returns the visible subset, or with ``keep_invisible`` all points and the visibility mask."""
     ids = np.ascontiguousarray(ids, dtype=np.int64)
-    Xc, uv, visible = project_map_points(cam_params, np.ascontiguousarray(T_cw, dtype=np.float64), X, ids,
-                                         float(width), float(height), float(tracker_cfg.image_margin_px),
-                                         float(tracker_cfg.valid_radius_factor))
+    Xc, uv, visible = project_map_points(
+        cam_params,
+        np.ascontiguousarray(T_cw, dtype=np.float64),
+        X,
+        ids,
+        float(width),
+        float(height),
+        float(tracker_cfg.image_margin_px),
+        float(tracker_cfg.valid_radius_factor),
+    )
     if keep_invisible:
         return Projection(ids, Xc, uv), visible
     return Projection(ids[visible], Xc[visible], uv[visible])

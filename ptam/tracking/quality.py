@@ -29,8 +29,13 @@ class TrackingQuality:
     def lost(self) -> bool:
         return self.bad_frames >= self.cfg.lost_frames
 
-    def assess(self, attempted_per_level: np.ndarray, found_per_level: np.ndarray, suspend: bool = False,
-               force_bad: bool = False) -> str:
+    def assess(
+        self,
+        attempted_per_level: np.ndarray,
+        found_per_level: np.ndarray,
+        suspend: bool = False,
+        force_bad: bool = False,
+    ) -> str:
         """``force_bad``: the frame is bad whatever its counts (PTAM code: too far from every keyframe)."""
         cfg = self.cfg
         attempted, found = int(attempted_per_level.sum()), int(found_per_level.sum())
@@ -38,9 +43,12 @@ class TrackingQuality:
             quality = BAD
         else:
             fraction = found / attempted
-            large_attempted = int(attempted_per_level[cfg.quality_large_min_level:].sum())
-            large = (found_per_level[cfg.quality_large_min_level:].sum() / large_attempted
-                     if large_attempted > cfg.quality_large_min_attempted else fraction)
+            large_attempted = int(attempted_per_level[cfg.quality_large_min_level :].sum())
+            large = (
+                found_per_level[cfg.quality_large_min_level :].sum() / large_attempted
+                if large_attempted > cfg.quality_large_min_attempted
+                else fraction
+            )
             quality = GOOD if fraction > cfg.quality_good else BAD if large < cfg.quality_lost else POOR
         if quality != BAD:
             self.bad_frames = 0

@@ -13,6 +13,7 @@ Keyframes are immutable, so their descriptors are computed once, when a snapshot
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -39,7 +40,7 @@ class Relocaliser:
         self.camera = camera
         self.cfg = cfg.reloc
         self.offsets = sample_offsets(cfg.rotation.sample_radius_px)
-        self._keyframes: list = []            # the KeyFrame objects whose descriptors are stacked
+        self._keyframes: list = []  # the KeyFrame objects whose descriptors are stacked
         self._images = np.zeros((0, 0, 0), np.float32)
         self._grads = np.zeros((0, 0, 0, 2), np.float32)
         self._sq_norms = np.zeros(0)
@@ -50,7 +51,7 @@ class Relocaliser:
 
     def sync(self, snapshot) -> None:
         """Add the descriptors of keyframes new in ``snapshot``; start over if it is another map."""
-        kfs = () if snapshot is None else snapshot.keyframes
+        kfs: Sequence = () if snapshot is None else snapshot.keyframes
         n = len(self._keyframes)
         if n and (len(kfs) < n or kfs[0] is not self._keyframes[0] or kfs[n - 1] is not self._keyframes[-1]):
             self._keyframes, n = [], 0

@@ -23,8 +23,9 @@ def sample_offsets(radius: float) -> np.ndarray:
     return np.array([[r, 0.0], [-r, 0.0], [0.0, r], [0.0, -r]])
 
 
-def rotation_from_se2(camera, params: np.ndarray, shape: tuple[int, int], level: int,
-                      offsets: np.ndarray) -> np.ndarray:
+def rotation_from_se2(
+    camera, params: np.ndarray, shape: tuple[int, int], level: int, offsets: np.ndarray
+) -> np.ndarray:
     """The camera rotation R (3, 3) taking template-camera bearings to aligned-camera bearings that best explains
     the SE(2) alignment ``params`` of small images of ``shape`` (H, W) at pyramid ``level`` (Agility §6;
     PTAM code ``SE3fromSE2``): sample points x and their images c + R(θ)(x − c) + t, unprojected to unit rays
@@ -65,6 +66,5 @@ class RotationEstimator:
             self.last = None
             return None
         self.last = current.align_to(previous, c.iterations, c.intensity_offset)
-        R = rotation_from_se2(self.camera, self.last.params, current.image.shape, small_level(pyramid),
-                              self.offsets)
+        R = rotation_from_se2(self.camera, self.last.params, current.image.shape, small_level(pyramid), self.offsets)
         return so3.log(R)

@@ -46,15 +46,31 @@ class TrailTracker:
 
     def advance(self, pyramid: Pyramid) -> int:
         """Follow every trail into ``pyramid``; drops the trails that fail. Returns the number kept."""
-        if self.first is None or self.n_trails == 0:
+        if self.first is None or self.previous is None or self.n_trails == 0:
             return 0
         c = self.cfg
-        fwd, ok = minipatch_find(self.first.levels[0], self.start_xy, pyramid.levels[0], self.current_xy,
-                                 pyramid.corners[0], pyramid.row_lut[0], c.trail_search_radius_px,
-                                 c.trail_half_patch, c.trail_max_ssd)
-        back, ok_b = minipatch_find(pyramid.levels[0], fwd, self.previous.levels[0], fwd,
-                                    self.previous.corners[0], self.previous.row_lut[0], c.trail_search_radius_px,
-                                    c.trail_half_patch, c.trail_max_ssd)
+        fwd, ok = minipatch_find(
+            self.first.levels[0],
+            self.start_xy,
+            pyramid.levels[0],
+            self.current_xy,
+            pyramid.corners[0],
+            pyramid.row_lut[0],
+            c.trail_search_radius_px,
+            c.trail_half_patch,
+            c.trail_max_ssd,
+        )
+        back, ok_b = minipatch_find(
+            pyramid.levels[0],
+            fwd,
+            self.previous.levels[0],
+            fwd,
+            self.previous.corners[0],
+            self.previous.row_lut[0],
+            c.trail_search_radius_px,
+            c.trail_half_patch,
+            c.trail_max_ssd,
+        )
         d2 = ((back - self.current_xy) ** 2).sum(axis=1)
         keep = ok & ok_b & (d2 <= c.trail_backward_tolerance_px2)
         self.start_xy = self.start_xy[keep]

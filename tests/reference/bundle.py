@@ -17,22 +17,22 @@ def ba_residuals_ref(camera, poses, points, mcam, mpt, uv, inv_sigma, use):
     ok = use & ~bad
     err = np.zeros((len(mcam), 2))
     err[ok] = (uv[ok] - camera.project(Xc[ok])) * inv_sigma[ok, None]
-    return err, (err ** 2).sum(axis=1), bad
+    return err, (err**2).sum(axis=1), bad
 
 
 def tukey_cutoff_sq_ref(e2, use, bad, min_cutoff):
     v = np.sort(e2[use & ~bad])
     n = len(v)
     if n == 0:
-        return min_cutoff ** 2
+        return min_cutoff**2
     small = 1.0 + 5.0 / (2.0 * n - 6.0) if 2 * n > 6 else 1.0
     c = TUKEY_C * MAD_TO_SIGMA * small * np.sqrt(v[n // 2])
-    return max(c * c, min_cutoff ** 2)
+    return max(c * c, min_cutoff**2)
 
 
 def ba_robust_cost_ref(e2, bad, use, c2):
     d = np.clip(1.0 - e2 / c2, 0.0, None)
-    obj = np.where(bad | (e2 >= c2), 1.0, 1.0 - d ** 3)
+    obj = np.where(bad | (e2 >= c2), 1.0, 1.0 - d**3)
     return float(obj[use].sum())
 
 
@@ -81,13 +81,13 @@ def ba_schur_ref(U, ea, V, eb, W, live, lam, mrow, mpt):
             Vinv[p] = np.linalg.inv(Vstar[p])
     Wbig = np.zeros((6 * nf, 3 * m))
     for k in np.flatnonzero(live & (mrow >= 0)):
-        Wbig[6 * mrow[k]:6 * mrow[k] + 6, 3 * mpt[k]:3 * mpt[k] + 3] += W[k]
+        Wbig[6 * mrow[k] : 6 * mrow[k] + 6, 3 * mpt[k] : 3 * mpt[k] + 3] += W[k]
     Vbig = np.zeros((3 * m, 3 * m))
     for p in range(m):
-        Vbig[3 * p:3 * p + 3, 3 * p:3 * p + 3] = Vinv[p]
+        Vbig[3 * p : 3 * p + 3, 3 * p : 3 * p + 3] = Vinv[p]
     Ubig = np.zeros((6 * nf, 6 * nf))
     for r in range(nf):
-        Ubig[6 * r:6 * r + 6, 6 * r:6 * r + 6] = Ustar[r]
+        Ubig[6 * r : 6 * r + 6, 6 * r : 6 * r + 6] = Ustar[r]
     S = Ubig - Wbig @ Vbig @ Wbig.T
     rhs = ea.ravel() - Wbig @ Vbig @ eb.ravel()
     return S, rhs, Vinv
@@ -105,7 +105,7 @@ def ba_pair_script_ref(pt_start, order, mrow):
     """(r_a, r_b) of every free-camera pair sharing a point, in ``ba_schur``'s walk order."""
     pairs = []
     for p in range(len(pt_start) - 1):
-        rows = mrow[order[pt_start[p]:pt_start[p + 1]]]
+        rows = mrow[order[pt_start[p] : pt_start[p + 1]]]
         rows = rows[rows >= 0]
         pairs += [(rows[a], rows[b]) for a in range(len(rows)) for b in range(a)]
     return np.array(pairs, dtype=np.int64).reshape(-1, 2)

@@ -15,8 +15,10 @@ def epipolar_search_ref(img, corners, corners_plane, box, templates, normal, dis
     x, y = corners[:, 0], corners[:, 1]
     inside = (x >= h) & (y >= h) & (x <= W - size + h) & (y <= H - size + h)
     off = np.arange(size) - h
-    patches = img[np.clip(y[:, None, None] + off[None, :, None], 0, H - 1),
-                  np.clip(x[:, None, None] + off[None, None, :], 0, W - 1)].astype(np.float64)
+    patches = img[
+        np.clip(y[:, None, None] + off[None, :, None], 0, H - 1),
+        np.clip(x[:, None, None] + off[None, None, :], 0, W - 1),
+    ].astype(np.float64)
     pz = patches - patches.mean(axis=(1, 2), keepdims=True)
     for k in range(n):
         d = dist[k] - corners_plane @ normal[k]

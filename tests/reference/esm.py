@@ -29,8 +29,7 @@ def esm_se2_ref(image, template, template_grad, params0, iterations, with_offset
         bot = image[y0 + 1, x0] + fx * (image[y0 + 1, x0 + 1] - image[y0 + 1, x0])
         warped = np.where(valid, (top + fy * (bot - top)).astype(np.float32), 0.0).astype(np.float64)
         inner = np.zeros((h, w), bool)
-        inner[1:-1, 1:-1] = (valid[1:-1, 1:-1] & valid[1:-1, :-2] & valid[1:-1, 2:] & valid[:-2, 1:-1]
-                             & valid[2:, 1:-1])
+        inner[1:-1, 1:-1] = valid[1:-1, 1:-1] & valid[1:-1, :-2] & valid[1:-1, 2:] & valid[:-2, 1:-1] & valid[2:, 1:-1]
         gx = np.zeros((h, w))
         gy = np.zeros((h, w))
         gx[:, 1:-1] = 0.25 * (warped[:, 2:] - warped[:, :-2])

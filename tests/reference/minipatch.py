@@ -13,8 +13,7 @@ def minipatch_find_ref(src, src_xy, dst, dst_xy, corners, radius, half, max_ssd)
     hs, ws = src.shape
     hd, wd = dst.shape
     off = np.arange(-half, half + 1)
-    cin = ((corners[:, 0] >= half) & (corners[:, 0] < wd - half)
-           & (corners[:, 1] >= half) & (corners[:, 1] < hd - half))
+    cin = (corners[:, 0] >= half) & (corners[:, 0] < wd - half) & (corners[:, 1] >= half) & (corners[:, 1] < hd - half)
     c = corners[cin]
     if len(c) == 0:
         return found, ok
@@ -23,7 +22,7 @@ def minipatch_find_ref(src, src_xy, dst, dst_xy, corners, radius, half, max_ssd)
         sx, sy = src_xy[i]
         if sx < half or sy < half or sx >= ws - half or sy >= hs - half:
             continue
-        t = src[sy - half:sy + half + 1, sx - half:sx + half + 1].astype(np.int64)
+        t = src[sy - half : sy + half + 1, sx - half : sx + half + 1].astype(np.int64)
         d2 = (c[:, 0] - dst_xy[i, 0]) ** 2 + (c[:, 1] - dst_xy[i, 1]) ** 2
         cand = d2 <= radius * radius
         if not cand.any():

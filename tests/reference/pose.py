@@ -12,18 +12,19 @@ def tukey_sigma_sq_ref(err_sq, min_sigma):
     err_sq = np.sort(np.asarray(err_sq, dtype=np.float64))
     n = len(err_sq)
     if n == 0:
-        return min_sigma ** 2
+        return min_sigma**2
     c = TUKEY_C * MAD_TO_SIGMA * (1.0 + 5.0 / max(2 * n - 6, 1)) * np.sqrt(err_sq[n // 2])
-    return max(c * c, min_sigma ** 2)
+    return max(c * c, min_sigma**2)
 
 
 def normal_equations_ref(J, r, inv_sigma, w):
-    ws = w * inv_sigma ** 2
+    ws = w * inv_sigma**2
     return np.einsum("n,nai,naj->ij", ws, J, J), np.einsum("n,nai,na->i", ws, J, r)
 
 
-def pose_irls_ref(camera, T_cw, X, meas, inv_sigma, n_iters, relinearise_every, min_sigma, prior,
-                  override_after, override_sigma_sq):
+def pose_irls_ref(
+    camera, T_cw, X, meas, inv_sigma, n_iters, relinearise_every, min_sigma, prior, override_after, override_sigma_sq
+):
     """Numpy reference of :func:`pose_irls` on a :class:`~ptam.camera.model.CameraModel`."""
     T = np.array(T_cw, dtype=np.float64)
     mu = np.zeros(6)
@@ -39,7 +40,7 @@ def pose_irls_ref(camera, T_cw, X, meas, inv_sigma, n_iters, relinearise_every, 
         else:
             uv = uv + J @ mu
         r = meas - uv
-        e2 = (r ** 2).sum(axis=1) * inv_sigma ** 2
+        e2 = (r**2).sum(axis=1) * inv_sigma**2
         if not valid.any():
             break
         if override_sigma_sq > 0 and it > override_after:

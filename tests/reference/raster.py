@@ -80,19 +80,22 @@ def draw_spheres_ref(img, zbuf, rays, spheres, boxes, light, shading):
         cov = np.minimum(0.5 + (r - dist) * inv_w, 1.0)
         hit = dist < r
         t = np.where(hit, t0 - np.sqrt(np.maximum(r * r - d2, 0.0) * ray[:, RAY_INV_DD]), t0)
-        z = zbuf[box[1]:box[3], box[0]:box[2]].reshape(-1)
+        z = zbuf[box[1] : box[3], box[0] : box[2]].reshape(-1)
         p = t[:, None] * d - c
         nl = np.linalg.norm(p, axis=1)
         ok = (t0 > 0) & ~outside & (t > 0) & (t < z) & (hit | (nl > 0))
         with np.errstate(divide="ignore", invalid="ignore"):
             n = np.where(hit[:, None], p / r, p / nl[:, None])[ok]
-        m = n @ s[S_ROT:S_ROT + 9].reshape(3, 3)
+        m = n @ s[S_ROT : S_ROT + 9].reshape(3, 3)
         base = s[_pattern_colour_ref(s, m)[:, None] + np.arange(3)]
         lam = np.maximum(n @ light, 0.0)
         nh = n @ sphere_half_vector(c, light)
         with np.errstate(invalid="ignore"):
-            spec = np.where(nh > specular_cutoff(specular, shininess),
-                            255.0 * specular * s[S_SPEC] * np.maximum(nh, 0.0) ** shininess, 0.0)
+            spec = np.where(
+                nh > specular_cutoff(specular, shininess),
+                255.0 * specular * s[S_SPEC] * np.maximum(nh, 0.0) ** shininess,
+                0.0,
+            )
         val = np.minimum(base * (ambient + diffuse * lam)[:, None] + spec[:, None], 255.0)
         _blend_ref(img, zbuf, box, np.flatnonzero(ok), val, cov[ok], t[ok])
 
@@ -110,7 +113,7 @@ def draw_decals_ref(img, zbuf, rays, plane, decals, boxes):
         with np.errstate(divide="ignore", invalid="ignore"):
             inv_den = 1.0 / den
             t = nd * inv_den
-        z = zbuf[box[1]:box[3], box[0]:box[2]].reshape(-1)
+        z = zbuf[box[1] : box[3], box[0] : box[2]].reshape(-1)
         q = t[:, None] * d - o
         a = q @ e1 - dk[0]
         b = q @ e2 - dk[1]
@@ -124,7 +127,7 @@ def draw_decals_ref(img, zbuf, rays, plane, decals, boxes):
             cov = cov * np.clip((rho - dk[D_RIN]) / w[ok] + 0.5, 0.0, 1.0)
         alpha = dk[D_ALPHA] * cov
         draw = alpha > 0
-        _blend_ref(img, zbuf, box, np.flatnonzero(ok)[draw], dk[D_COLOUR:D_COLOUR + 3], alpha[draw])
+        _blend_ref(img, zbuf, box, np.flatnonzero(ok)[draw], dk[D_COLOUR : D_COLOUR + 3], alpha[draw])
 
 
 def rasterise_polylines_ref(shape, uv, ok, half_width):

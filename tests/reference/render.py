@@ -16,12 +16,14 @@ def _bilinear_ref(tex_data, tex_info, t, lev, fx, fy):
     y0 = np.clip(y0f.astype(np.int64), 0, h - 1)
     y1 = np.clip(y0f.astype(np.int64) + 1, 0, h - 1)
     g = tex_data.astype(np.float64)
-    return ((1 - ay) * ((1 - ax) * g[off + y0 * w + x0] + ax * g[off + y0 * w + x1])
-            + ay * ((1 - ax) * g[off + y1 * w + x0] + ax * g[off + y1 * w + x1]))
+    return (1 - ay) * ((1 - ax) * g[off + y0 * w + x0] + ax * g[off + y0 * w + x1]) + ay * (
+        (1 - ax) * g[off + y1 * w + x0] + ax * g[off + y1 * w + x1]
+    )
 
 
-def render_ref(rays, crays, drays, sample_step, poses, rects, rect_tex, tex_data, tex_info, tex_levels, tex_texel,
-               background):
+def render_ref(
+    rays, crays, drays, sample_step, poses, rects, rect_tex, tex_data, tex_info, tex_levels, tex_texel, background
+):
     """Numpy reference of :func:`render` (world frame throughout); returns the (H, W) float32 image."""
     H, W, S, _ = rays.shape
     acc = np.zeros((H, W))
@@ -42,8 +44,9 @@ def render_ref(rays, crays, drays, sample_step, poses, rects, rect_tex, tex_data
         for j in range(2):
             e = np.repeat(drays[:, :, j, :].reshape(-1, 3) @ R.T, S, axis=0)
             dP = e - d0 * (np.einsum("nc,nc->n", e, n) / nd0)[:, None]
-            rho2 = np.maximum(rho2, np.einsum("nc,nc->n", dP, rects[kk, 3:6]) ** 2
-                              + np.einsum("nc,nc->n", dP, rects[kk, 6:9]) ** 2)
+            rho2 = np.maximum(
+                rho2, np.einsum("nc,nc->n", dP, rects[kk, 3:6]) ** 2 + np.einsum("nc,nc->n", dP, rects[kk, 6:9]) ** 2
+            )
         tex = rect_tex[kk]
         texel = tex_texel[tex]
         rho = np.where(ok, t0 * np.sqrt(rho2) * sample_step / texel, 0.0)

@@ -14,8 +14,7 @@ def shi_tomasi_ref(img: np.ndarray, xy: np.ndarray, half: int) -> np.ndarray:
     dx[:, 1:-1] = I[:, 2:] - I[:, :-2]
     dy[1:-1, :] = I[2:, :] - I[:-2, :]
     xy = np.asarray(xy, dtype=np.int64).reshape(-1, 2)
-    inside = ((xy[:, 0] - half >= 1) & (xy[:, 1] - half >= 1)
-              & (xy[:, 0] + half <= W - 2) & (xy[:, 1] + half <= H - 2))
+    inside = (xy[:, 0] - half >= 1) & (xy[:, 1] - half >= 1) & (xy[:, 0] + half <= W - 2) & (xy[:, 1] + half <= H - 2)
     out = np.full(len(xy), -np.inf)
     if not inside.any():
         return out

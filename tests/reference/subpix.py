@@ -39,8 +39,12 @@ def refine_subpix_ref(levels, templates, level, start_xy, max_its, converge_px):
                 continue
             ys, xs = iy[k] + off[:, None], ix[k] + off[None, :]
             fx, fy = frac[k]
-            v[k] = ((1 - fx) * (1 - fy) * img[ys, xs] + fx * (1 - fy) * img[ys, xs + 1]
-                    + (1 - fx) * fy * img[ys + 1, xs] + fx * fy * img[ys + 1, xs + 1])
+            v[k] = (
+                (1 - fx) * (1 - fy) * img[ys, xs]
+                + fx * (1 - fy) * img[ys, xs + 1]
+                + (1 - fx) * fy * img[ys + 1, xs]
+                + fx * fy * img[ys + 1, xs + 1]
+            )
         init = active & first
         m[init] = (v[init] - Ti[init]).mean(axis=(1, 2))
         first[init] = False
@@ -49,7 +53,7 @@ def refine_subpix_ref(levels, templates, level, start_xy, max_its, converge_px):
         d[~active] = 0.0
         xy -= d[:, :2]
         m += d[:, 2]
-        done = active & ((d[:, :2] ** 2).sum(axis=1) < converge_px ** 2)
+        done = active & ((d[:, :2] ** 2).sum(axis=1) < converge_px**2)
         converged |= done
         active &= ~done
     return xy, converged

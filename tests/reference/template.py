@@ -26,8 +26,12 @@ def make_templates_ref(kf_images, source_kf, source_level, source_xy, M, size):
         fx, fy = xs - x0, ys - y0
         kf = source_kf[sel][:, None, None]
         img = stack.astype(np.float64)
-        v = ((1 - fx) * (1 - fy) * img[kf, y0, x0] + fx * (1 - fy) * img[kf, y0, x0 + 1]
-             + (1 - fx) * fy * img[kf, y0 + 1, x0] + fx * fy * img[kf, y0 + 1, x0 + 1])
+        v = (
+            (1 - fx) * (1 - fy) * img[kf, y0, x0]
+            + fx * (1 - fy) * img[kf, y0, x0 + 1]
+            + (1 - fx) * fy * img[kf, y0 + 1, x0]
+            + fx * fy * img[kf, y0 + 1, x0 + 1]
+        )
         v -= v.mean(axis=(1, 2), keepdims=True)
         out[sel] = np.where(inside[:, None, None], v, 0.0)
         ok[sel] = inside

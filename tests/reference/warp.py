@@ -20,6 +20,6 @@ def warp_matrices_ref(camera, T_cw, Xc, right_W, down_W, n_levels, det_min, det_
     else:
         need = np.ceil(np.log(np.where(pos, det, 1.0) / det_max) / np.log(4.0) - 1e-12)
         level = np.clip(need, 0, n_levels - 1).astype(np.int32)
-    d = det / 4.0 ** level
+    d = det / 4.0**level
     level[~pos | (d < det_min) | (d > det_max)] = -1
     return A, det, level

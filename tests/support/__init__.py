@@ -8,6 +8,23 @@ from pathlib import Path
 from ptam.config import CaptureConfig, Config, load_config
 from ptam.synthetic import ensure_sequence
 
+# A six-frame 80x60 scene: renders in well under a second.
+TINY = """\
+camera: {model: fov, width: 80, height: 60, fx: 48.0, fy: 48.0, cx: 39.5, cy: 29.5, omega: 0.9}
+frames: 6
+fps: 10
+rectangles:
+  - {name: wall, center: [0, 0, 3], axes: [[1, 0, 0], [0, 1, 0]], size: [12, 9],
+     texture: {type: dead_leaves, seed: 3, texel: 0.02, sizes: [0.05, 1.0], detail: 2}}
+trajectory:
+  up: [0, -1, 0]
+  keys:
+    - {frame: 0, position: [0, 0, 0], look_at: [0, 0, 3]}
+    - {frame: 5, position: [0.5, 0, 0], look_at: [0.5, 0, 3]}
+render:
+  noise: {sigma: 1.0, seed: 2}
+"""
+
 
 @functools.cache
 def config() -> Config:

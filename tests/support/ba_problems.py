@@ -8,10 +8,17 @@ from ptam.bench.ba_timing import CAMERA, NOISE_PX, OUTLIER_FRACTION, WALL_DEPTH_
 from ptam.camera.fov import FovCamera
 
 
-def synthetic_workspace_problem(n_keyframes: int, n_points: int, seed: int, camera: FovCamera | None = None,
-                                arc_deg: float = 90.0, scene_radius_m: float = 2.0,
-                                outlier_fraction: float = OUTLIER_FRACTION, noise_px: float = NOISE_PX,
-                                level_fractions=(1.0,)) -> SyntheticBA:
+def synthetic_workspace_problem(
+    n_keyframes: int,
+    n_points: int,
+    seed: int,
+    camera: FovCamera | None = None,
+    arc_deg: float = 90.0,
+    scene_radius_m: float = 2.0,
+    outlier_fraction: float = OUTLIER_FRACTION,
+    noise_px: float = NOISE_PX,
+    level_fractions=(1.0,),
+) -> SyntheticBA:
     """A small AR workspace (PTAM §1): keyframes on an ``arc_deg`` arc 3 m from the centre of a ball of points
     (radius ``scene_radius_m``), all looking at it, so nearly every keyframe sees every point."""
     rng = np.random.default_rng(seed)
