@@ -27,8 +27,10 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..camera.model import CameraModel
 from ..config import BundleConfig
@@ -42,20 +44,20 @@ AbortFlag = threading.Event | Callable[[], bool] | None
 
 @dataclass(frozen=True)
 class BundleResult:
-    poses: np.ndarray          # (N, 4, 4) T_cw; rows of fixed or unmeasured keyframes are the input, bit for bit
-    points: np.ndarray         # (M, 3); rows of points not adjusted are the input, bit for bit
-    iterations: int            # LM trials (PTAM's mnCounter)
-    accepted: int              # accepted steps (PTAM's return value)
+    poses: np.ndarray  # (N, 4, 4) T_cw; rows of fixed or unmeasured keyframes are the input, bit for bit
+    points: np.ndarray  # (M, 3); rows of points not adjusted are the input, bit for bit
+    iterations: int  # LM trials (PTAM's mnCounter)
+    accepted: int  # accepted steps (PTAM's return value)
     converged: bool
     aborted: bool
     hit_max_iterations: bool
-    failed: bool               # the reduced system could not be factorised (PTAM: the map is corrupt)
-    cost: float                # PTAM's Tukey objective Σ (1 − (1 − e²/c²)³), outliers 1, at the returned state
-    tukey_cutoff: float        # the last c, in σ-normalised px
-    inlier_rms: float          # RMS per image coordinate of e/σ over the non-outlier measurements
+    failed: bool  # the reduced system could not be factorised (PTAM: the map is corrupt)
+    cost: float  # PTAM's Tukey objective Σ (1 − (1 − e²/c²)³), outliers 1, at the returned state
+    tukey_cutoff: float  # the last c, in σ-normalised px
+    inlier_rms: float  # RMS per image coordinate of e/σ over the non-outlier measurements
     n_inliers: int
-    n_params: int              # free parameters: 6 per adjusted keyframe + 3 per point with an inlier
-    outliers: np.ndarray       # input indices of the measurements flagged as outliers (PTAM §6.4)
+    n_params: int  # free parameters: 6 per adjusted keyframe + 3 per point with an inlier
+    outliers: np.ndarray  # input indices of the measurements flagged as outliers (PTAM §6.4)
     phase_seconds: dict = field(default_factory=dict)
 
     @property
@@ -88,16 +90,69 @@ def _as_array(name: str, a, shape: tuple, dtype) -> np.ndarray:
     return out
 
 
+@dataclass(frozen=True)
+class _Inputs:
+    """The arguments of ``Bundle.adjust``, checked and converted to contiguous arrays of the kernels' dtypes."""
+
+    poses: np.ndarray
+    points: np.ndarray
+    meas_kf: np.ndarray
+    meas_pt: np.ndarray
+    meas_xy: np.ndarray
+    meas_level: np.ndarray
+    fixed_poses: np.ndarray
+    adjust_points: np.ndarray
+
+
+def _checked_inputs(
+    poses: ArrayLike,
+    points: ArrayLike,
+    meas_kf: ArrayLike,
+    meas_pt: ArrayLike,
+    meas_xy: ArrayLike,
+    meas_level: ArrayLike,
+    fixed_poses: ArrayLike,
+    adjust_points: ArrayLike | None,
+) -> _Inputs:
+    poses = _as_array("poses", poses, (None, 4, 4), np.float64)
+    points = _as_array("points", points, (None, 3), np.float64)
+    n, m = len(poses), len(points)
+    meas_kf = _as_array("meas_kf", meas_kf, (None,), np.int64)
+    k = len(meas_kf)
+    meas_pt = _as_array("meas_pt", meas_pt, (k,), np.int64)
+    meas_xy = _as_array("meas_xy", meas_xy, (k, 2), np.float64)
+    meas_level = _as_array("meas_level", meas_level, (k,), np.int64)
+    fixed_poses = _as_array("fixed_poses", fixed_poses, (n,), bool)
+    adjust_points = np.ones(m, bool) if adjust_points is None else _as_array("adjust_points", adjust_points, (m,), bool)
+    if k and (meas_kf.min() < 0 or meas_kf.max() >= n):
+        raise InputError(f"bundle adjustment: keyframe index out of range [0, {n})")
+    if k and (meas_pt.min() < 0 or meas_pt.max() >= m):
+        raise InputError(f"bundle adjustment: point index out of range [0, {m})")
+    if k and meas_level.min() < 0:
+        raise InputError("bundle adjustment: negative pyramid level")
+    return _Inputs(poses, points, meas_kf, meas_pt, meas_xy, meas_level, fixed_poses, adjust_points)
+
+
 class Bundle:
     """PTAM's bundle adjuster for one camera model. ``adjust`` is re-entrant (no state between calls)."""
 
-    def __init__(self, camera: CameraModel, cfg: BundleConfig):
+    def __init__(self, camera: CameraModel, cfg: BundleConfig) -> None:
         self.camera = camera
         self.cfg = cfg
         self._cam = np.ascontiguousarray(camera.kernel_params(), dtype=np.float64)
 
-    def adjust(self, poses, points, meas_kf, meas_pt, meas_xy, meas_level, fixed_poses,
-               adjust_points=None, abort: AbortFlag = None) -> BundleResult:
+    def adjust(
+        self,
+        poses: ArrayLike,
+        points: ArrayLike,
+        meas_kf: ArrayLike,
+        meas_pt: ArrayLike,
+        meas_xy: ArrayLike,
+        meas_level: ArrayLike,
+        fixed_poses: ArrayLike,
+        adjust_points: ArrayLike | None = None,
+        abort: AbortFlag = None,
+    ) -> BundleResult:
         """Adjust the non-fixed poses and the points in ``adjust_points`` (default all).
 
         poses (N, 4, 4) T_cw, points (M, 3); measurement k is point ``meas_pt[k]`` seen in keyframe
@@ -106,115 +161,188 @@ class Bundle:
         ``threading.Event`` or a callable polled between LM iterations.
         """
         t_start = time.perf_counter()
-        poses = _as_array("poses", poses, (None, 4, 4), np.float64)
-        points = _as_array("points", points, (None, 3), np.float64)
-        n, m = len(poses), len(points)
-        meas_kf = _as_array("meas_kf", meas_kf, (None,), np.int64)
-        k = len(meas_kf)
-        meas_pt = _as_array("meas_pt", meas_pt, (k,), np.int64)
-        meas_xy = _as_array("meas_xy", meas_xy, (k, 2), np.float64)
-        meas_level = _as_array("meas_level", meas_level, (k,), np.int64)
-        fixed_poses = _as_array("fixed_poses", fixed_poses, (n,), bool)
-        adjust_points = (np.ones(m, bool) if adjust_points is None
-                         else _as_array("adjust_points", adjust_points, (m,), bool))
-        if k and (meas_kf.min() < 0 or meas_kf.max() >= n):
-            raise InputError(f"bundle adjustment: keyframe index out of range [0, {n})")
-        if k and (meas_pt.min() < 0 or meas_pt.max() >= m):
-            raise InputError(f"bundle adjustment: point index out of range [0, {m})")
-        if k and meas_level.min() < 0:
-            raise InputError("bundle adjustment: negative pyramid level")
+        inp = _checked_inputs(poses, points, meas_kf, meas_pt, meas_xy, meas_level, fixed_poses, adjust_points)
         should_abort = _abort_poller(abort)
 
-        st = build_structure(meas_kf, meas_pt, fixed_poses, adjust_points)
-        inv_sigma = np.ldexp(1.0, -meas_level[st.sel])  # σ = 2^level px (PTAM §5.4)
+        st = build_structure(inp.meas_kf, inp.meas_pt, inp.fixed_poses, inp.adjust_points)
+        inv_sigma = np.ldexp(1.0, -inp.meas_level[st.sel])  # σ = 2^level px (PTAM §5.4)
         phases = {"setup": 0.0, "linearise": 0.0, "schur": 0.0, "solve": 0.0, "backsub": 0.0, "trial": 0.0}
         solver = ReducedSolver(st, dense=st.n_free <= self.cfg.dense_max_cameras)
         phases["setup"] = time.perf_counter() - t_start
-        state = _LMState(st, poses[st.cams], points[st.pts], meas_xy[st.sel], inv_sigma)
+        state = _LMState(st, inp.poses[st.cams], inp.points[st.pts], inp.meas_xy[st.sel], inv_sigma)
         status = self._levenberg_marquardt(state, solver, should_abort, phases)
+        return self._result(inp, state, status, phases, t_start)
 
-        out_poses = poses.copy()
+    def _result(
+        self, inp: _Inputs, s: _LMState, status: dict[str, Any], phases: dict[str, float], t_start: float
+    ) -> BundleResult:
+        """The adjusted state written back into copies of the caller's poses and points, with the run's figures."""
+        st = s.st
+        out_poses = inp.poses.copy()
         free_cams = st.cams[st.free]
-        out_poses[free_cams] = state.P[st.free]
-        out_points = points.copy()
-        out_points[st.pts] = state.X
-        summary = state.summary(self._cam)
+        out_poses[free_cams] = s.P[st.free]
+        out_points = inp.points.copy()
+        out_points[st.pts] = s.X
+        summary = s.summary(self._cam)
         phases["total"] = time.perf_counter() - t_start
-        return BundleResult(poses=out_poses, points=out_points, **status, **summary,
-                            outliers=np.sort(st.sel[state.outlier]), phase_seconds=phases)
+        return BundleResult(
+            poses=out_poses,
+            points=out_points,
+            **status,
+            **summary,
+            outliers=np.sort(st.sel[s.outlier]),
+            phase_seconds=phases,
+        )
 
-    def _levenberg_marquardt(self, s: _LMState, solver, should_abort, phases: dict) -> dict:
+    def _levenberg_marquardt(
+        self, s: _LMState, solver: ReducedSolver, should_abort: Callable[[], bool], phases: dict[str, float]
+    ) -> dict[str, Any]:
         """PTAM's Bundle::Compute / Do_LM_Step loop; updates ``s`` in place and returns the status flags."""
-        cfg, cam, st = self.cfg, self._cam, s.st
-        lam, nu = cfg.lambda_initial, cfg.lambda_increase_initial
-        iterations = accepted = 0
-        converged = hit_max = aborted = failed = False
-        free_idx = np.flatnonzero(st.free)
-        while not (converged or hit_max or failed or aborted) and s.use.any():
+        lm = _LMProgress(self.cfg)
+        while not (lm.converged or lm.hit_max or lm.failed or lm.aborted) and s.use.any():
             if should_abort():
-                aborted = True
+                lm.aborted = True
                 break
-            t = time.perf_counter()
-            ba_residuals(cam, s.P, s.X, st.mcam, st.mpt, s.uv, s.inv_sigma, s.use, s.err, s.e2, s.bad)
-            s.c2 = tukey_cutoff_sq(s.e2, s.use, s.bad, cfg.min_tukey_sigma)
-            cost = ba_linearise(cam, s.P, s.X, st.mcam, st.mpt, s.uv, s.inv_sigma, s.use, s.c2, st.cam_row,
-                                s.U, s.ea, s.V, s.eb, s.W, s.live)
+            cost = self._linearise(s, phases)
             flagged = s.use & ~s.live
-            n_flagged = float(flagged.sum())
-            phases["linearise"] += time.perf_counter() - t
-            new_cost = np.inf
-            while new_cost > cost and not (converged or hit_max):
-                if should_abort():
-                    aborted = True
-                    break
-                t = time.perf_counter()
-                ba_schur(s.U, s.ea, s.V, s.eb, s.W, s.live, lam, st.mrow, st.pt_start, st.order, st.pair_id,
-                         s.blocks, s.rhs, s.Vinv)
-                t1 = time.perf_counter()
-                phases["schur"] += t1 - t
-                try:
-                    dcam = solver.solve(s.blocks, s.rhs) if len(free_idx) else np.zeros(0)
-                except np.linalg.LinAlgError:
-                    # With one fixed keyframe the scale gauge is free and only the damping keeps the reduced
-                    # system definite; after many good steps λ may be too small for it to factorise. That is a
-                    # rejected step, not a corrupt map: raise λ and try again (failed only past lambda_max).
-                    lam *= nu
-                    nu *= cfg.lambda_increase_growth
-                    iterations += 1
-                    hit_max = iterations >= cfg.max_iterations
-                    failed = lam > cfg.lambda_max
-                    if failed:
-                        break
-                    continue
-                t2 = time.perf_counter()
-                phases["solve"] += t2 - t1
-                dpts = ba_backsub(s.Vinv, s.eb, s.W, s.live, st.mrow, st.pt_start, st.order, dcam)
-                t3 = time.perf_counter()
-                phases["backsub"] += t3 - t2
-                if dcam @ dcam + np.vdot(dpts, dpts) < cfg.converge_squared_update:
-                    converged = True
-                P_new = s.P.copy()
-                P_new[free_idx] = se3.exp(dcam.reshape(-1, 6)) @ s.P[free_idx]
-                X_new = s.X + dpts
-                ba_residuals(cam, P_new, X_new, st.mcam, st.mpt, s.uv, s.inv_sigma, s.live, s.err, s.e2, s.bad)
-                new_cost = ba_robust_cost(s.e2, s.bad, s.live, s.c2) + n_flagged
-                if new_cost > cost:
-                    lam *= nu
-                    nu *= cfg.lambda_increase_growth
-                iterations += 1
-                hit_max = iterations >= cfg.max_iterations
-                phases["trial"] += time.perf_counter() - t3
-            if new_cost < cost:
-                lam *= cfg.lambda_decrease
-                nu = cfg.lambda_increase_initial
-                s.P, s.X = P_new, X_new
-                accepted += 1
+            step = self._damped_step(s, solver, should_abort, phases, lm, cost, float(flagged.sum()))
+            if step is not None:
+                lm.accept()
+                s.P, s.X = step
             s.outlier |= flagged
             s.use &= ~flagged
         # Nothing left to adjust (no measurements, or all of them outliers) is trivially converged.
-        converged = converged or not (s.use.any() or aborted or failed)
-        return {"iterations": iterations, "accepted": accepted, "converged": converged, "aborted": aborted,
-                "hit_max_iterations": hit_max, "failed": failed}
+        lm.converged = lm.converged or not (s.use.any() or lm.aborted or lm.failed)
+        return lm.status()
+
+    def _linearise(self, s: _LMState, phases: dict[str, float]) -> float:
+        """Residuals at the current state, the Tukey cut-off re-estimated from them, and the normal equations'
+        blocks; returns the cost (``s.live`` marks the measurements the Tukey weight keeps)."""
+        cam, st = self._cam, s.st
+        t = time.perf_counter()
+        ba_residuals(cam, s.P, s.X, st.mcam, st.mpt, s.uv, s.inv_sigma, s.use, s.err, s.e2, s.bad)
+        s.c2 = c2 = tukey_cutoff_sq(s.e2, s.use, s.bad, self.cfg.min_tukey_sigma)
+        cost = ba_linearise(
+            cam, s.P, s.X, st.mcam, st.mpt, s.uv, s.inv_sigma, s.use, c2, st.cam_row, s.U, s.ea, s.V, s.eb, s.W, s.live
+        )
+        phases["linearise"] += time.perf_counter() - t
+        return cost
+
+    def _damped_step(
+        self,
+        s: _LMState,
+        solver: ReducedSolver,
+        should_abort: Callable[[], bool],
+        phases: dict[str, float],
+        lm: _LMProgress,
+        cost: float,
+        n_flagged: float,
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """Trial steps, raising λ after each rejected one, until one lowers ``cost`` or the run stops; returns
+        the new (poses, points) of the step that lowered it, else None."""
+        cfg = self.cfg
+        new_cost = np.inf
+        trial: tuple[np.ndarray, np.ndarray] | None = None
+        while new_cost > cost and not (lm.converged or lm.hit_max):
+            if should_abort():
+                lm.aborted = True
+                break
+            step = self._solve_step(s, solver, lm.lam, phases)
+            if step is None:
+                # With one fixed keyframe the scale gauge is free and only the damping keeps the reduced
+                # system definite; after many good steps λ may be too small for it to factorise. That is a
+                # rejected step, not a corrupt map: raise λ and try again (failed only past lambda_max).
+                lm.reject()
+                lm.count_trial()
+                lm.failed = lm.lam > cfg.lambda_max
+                if lm.failed:
+                    break
+                continue
+            t = time.perf_counter()
+            dcam, dpts = step
+            if dcam @ dcam + np.vdot(dpts, dpts) < cfg.converge_squared_update:
+                lm.converged = True
+            trial, new_cost = self._trial(s, dcam, dpts, n_flagged)
+            if new_cost > cost:
+                lm.reject()
+            lm.count_trial()
+            phases["trial"] += time.perf_counter() - t
+        return trial if new_cost < cost else None
+
+    def _solve_step(
+        self, s: _LMState, solver: ReducedSolver, lam: float, phases: dict[str, float]
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """The damped step (pose updates μ of the free keyframes, point updates) from the blocks linearised in
+        ``s``: the points eliminated by the Schur complement; None when the reduced system does not factorise."""
+        st = s.st
+        t = time.perf_counter()
+        ba_schur(
+            s.U, s.ea, s.V, s.eb, s.W, s.live, lam, st.mrow, st.pt_start, st.order, st.pair_id, s.blocks, s.rhs, s.Vinv
+        )
+        t1 = time.perf_counter()
+        phases["schur"] += t1 - t
+        try:
+            dcam = solver.solve(s.blocks, s.rhs) if len(s.free_idx) else np.zeros(0)
+        except np.linalg.LinAlgError:
+            return None
+        t2 = time.perf_counter()
+        phases["solve"] += t2 - t1
+        dpts = ba_backsub(s.Vinv, s.eb, s.W, s.live, st.mrow, st.pt_start, st.order, dcam)
+        phases["backsub"] += time.perf_counter() - t2
+        return dcam, dpts
+
+    def _trial(
+        self, s: _LMState, dcam: np.ndarray, dpts: np.ndarray, n_flagged: float
+    ) -> tuple[tuple[np.ndarray, np.ndarray], float]:
+        """The (poses, points) after the step and their cost on the measurements live at linearisation, the
+        flagged ones scoring 1 each."""
+        st = s.st
+        P_new = s.P.copy()
+        P_new[s.free_idx] = se3.exp(dcam.reshape(-1, 6)) @ s.P[s.free_idx]
+        X_new = s.X + dpts
+        ba_residuals(self._cam, P_new, X_new, st.mcam, st.mpt, s.uv, s.inv_sigma, s.live, s.err, s.e2, s.bad)
+        return (P_new, X_new), ba_robust_cost(s.e2, s.bad, s.live, s.c2) + n_flagged
+
+
+@dataclass
+class _LMProgress:
+    """Levenberg–Marquardt's damping λ and its growth ν, the trial counters and the stop flags of one run."""
+
+    cfg: BundleConfig
+    lam: float = field(init=False)
+    nu: float = field(init=False)
+    iterations: int = 0
+    accepted: int = 0
+    converged: bool = False
+    hit_max: bool = False
+    aborted: bool = False
+    failed: bool = False
+
+    def __post_init__(self) -> None:
+        self.lam, self.nu = self.cfg.lambda_initial, self.cfg.lambda_increase_initial
+
+    def reject(self) -> None:
+        self.lam *= self.nu
+        self.nu *= self.cfg.lambda_increase_growth
+
+    def accept(self) -> None:
+        self.lam *= self.cfg.lambda_decrease
+        self.nu = self.cfg.lambda_increase_initial
+        self.accepted += 1
+
+    def count_trial(self) -> None:
+        self.iterations += 1
+        self.hit_max = self.iterations >= self.cfg.max_iterations
+
+    def status(self) -> dict[str, Any]:
+        return {
+            "iterations": self.iterations,
+            "accepted": self.accepted,
+            "converged": self.converged,
+            "aborted": self.aborted,
+            "hit_max_iterations": self.hit_max,
+            "failed": self.failed,
+        }
 
 
 class _LMState:
@@ -223,6 +351,7 @@ class _LMState:
     def __init__(self, st: BundleStructure, P, X, uv, inv_sigma):
         kc, mc, nf = len(st.sel), len(st.pts), st.n_free
         self.st = st
+        self.free_idx = np.flatnonzero(st.free)
         self.P = P.copy()
         self.X = X.copy()
         self.uv = uv
@@ -246,13 +375,17 @@ class _LMState:
     def summary(self, cam) -> dict:
         st = self.st
         everything = np.ones(len(st.sel), bool)
-        ba_residuals(cam, self.P, self.X, st.mcam, st.mpt, self.uv, self.inv_sigma, everything, self.err,
-                     self.e2, self.bad)
+        ba_residuals(
+            cam, self.P, self.X, st.mcam, st.mpt, self.uv, self.inv_sigma, everything, self.err, self.e2, self.bad
+        )
         inl = self.use & ~self.bad
         n_inl = int(inl.sum())
         c2 = self.c2 if np.isfinite(self.c2) else tukey_cutoff_sq(self.e2, everything, self.bad, 0.0)
         pts_with_inlier = np.unique(st.mpt[inl]).size
-        return {"cost": float(ba_robust_cost(self.e2, self.bad, everything, c2)),
-                "tukey_cutoff": float(np.sqrt(c2)),
-                "inlier_rms": float(np.sqrt(self.e2[inl].sum() / (2 * n_inl))) if n_inl else float("nan"),
-                "n_inliers": n_inl, "n_params": 6 * st.n_free + 3 * pts_with_inlier}
+        return {
+            "cost": float(ba_robust_cost(self.e2, self.bad, everything, c2)),
+            "tukey_cutoff": float(np.sqrt(c2)),
+            "inlier_rms": float(np.sqrt(self.e2[inl].sum() / (2 * n_inl))) if n_inl else float("nan"),
+            "n_inliers": n_inl,
+            "n_params": 6 * st.n_free + 3 * pts_with_inlier,
+        }

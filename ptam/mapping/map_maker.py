@@ -13,6 +13,7 @@ from __future__ import annotations
 import logging
 from collections import deque
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
@@ -27,6 +28,10 @@ from .bundle import Bundle
 from .epipolar import epipolar_matches, unit_plane_corners
 from .local_ba import local_sets
 from .refind import refind_points
+
+if TYPE_CHECKING:
+    from ..camera.model import CameraModel
+    from ..config import Config
 
 log = logging.getLogger("ptam.mapper")
 
@@ -49,7 +54,7 @@ class KeyframeRequest:
 
 
 class MapMaker:
-    def __init__(self, camera, cfg, map_: Map | None = None):
+    def __init__(self, camera: CameraModel, cfg: Config, map_: Map | None = None) -> None:
         self.camera = camera
         self.cfg = cfg
         self.bundle = Bundle(camera, cfg.bundle)
@@ -72,7 +77,7 @@ class MapMaker:
         # mdWiggleScaleDepthNormalized).
         self.wiggle_depth_normalised = 0.0
         # ba_running: "local" or "global" while a bundle adjustment runs, else None (read by the viewer).
-        self.stats = {"local_ba": [], "global_ba": [], "keyframes_added": 0, "ba_running": None}
+        self.stats: dict[str, Any] = {"local_ba": [], "global_ba": [], "keyframes_added": 0, "ba_running": None}
         self.ready = False  # set once a usable map exists; the mapper thread idles until then
         if len(self.map.keyframes):
             self.ready = True
@@ -142,8 +147,11 @@ class MapMaker:
             inl, out = self.tracker_feedback.popleft()
             np.add.at(self._inlier_count, inl[inl < n], 1)
             np.add.at(self._outlier_count, out[out < n], 1)
-        bad = ((self._outlier_count[:n] > self.cfg.mapper.bad_point_min_outliers)
-               & (self._outlier_count[:n] > self._inlier_count[:n]) & ~self.map.bad)
+        bad = (
+            (self._outlier_count[:n] > self.cfg.mapper.bad_point_min_outliers)
+            & (self._outlier_count[:n] > self._inlier_count[:n])
+            & ~self.map.bad
+        )
         if not bad.any():
             return False
         self.map.mark_bad(np.flatnonzero(bad))
@@ -155,8 +163,9 @@ class MapMaker:
                 return
 
     # -- keyframe integration (PTAM §6.2) ---------------------------------------------------------------
-    def _new_keyframe(self, pyramid: Pyramid, T_cw: np.ndarray, timestamp: float, depth_mean: float,
-                      depth_sigma: float) -> int:
+    def _new_keyframe(
+        self, pyramid: Pyramid, T_cw: np.ndarray, timestamp: float, depth_mean: float, depth_sigma: float
+    ) -> int:
         kf = KeyFrame(self.map.next_keyframe_id, pyramid, float(depth_mean), float(depth_sigma), float(timestamp))
         return self.map.add_keyframe(kf, T_cw)
 
@@ -208,8 +217,19 @@ class MapMaker:
         if key not in self._plane_corners:
             self._plane_corners[key] = unit_plane_corners(self.camera, m.keyframes[t].pyramid, level)
         T = m.kf_T_cw
-        res = epipolar_matches(self.camera, T[k], T[t], kf.pyramid, m.keyframes[t].pyramid, kf.scene_depth_mean,
-                               kf.scene_depth_sigma, level, xy, self._plane_corners[key], self.cfg)
+        res = epipolar_matches(
+            self.camera,
+            T[k],
+            T[t],
+            kf.pyramid,
+            m.keyframes[t].pyramid,
+            kf.scene_depth_mean,
+            kf.scene_depth_sigma,
+            level,
+            xy,
+            self._plane_corners[key],
+            self.cfg,
+        )
         n = len(res.X)
         if n == 0:
             return 0
@@ -241,9 +261,20 @@ class MapMaker:
         if len(pts) == 0:
             return 0
         m = self.map
-        r = refind_points(self.camera, self.cfg, self.finder, m.kf_T_cw, m.kf_images, m.keyframes[k].pyramid,
-                          m.kf_T_cw[k], m.X[pts], m.normal[pts], m.source_kf[pts], m.source_level[pts],
-                          m.source_xy[pts])
+        r = refind_points(
+            self.camera,
+            self.cfg,
+            self.finder,
+            m.kf_T_cw,
+            m.kf_images,
+            m.keyframes[k].pyramid,
+            m.kf_T_cw[k],
+            m.X[pts],
+            m.normal[pts],
+            m.source_kf[pts],
+            m.source_level[pts],
+            m.source_xy[pts],
+        )
         never[pts[~r.found]] = True
         if r.found.any():
             m.add_measurements(k, pts[r.found], r.xy[r.found], r.level[r.found], source)
@@ -277,8 +308,9 @@ class MapMaker:
             self.recent_converged = True
             return
         if recent:
-            sets = local_sets(m.kf_T_cw, m.meas_kf, m.meas_pt, m.n_points_total, n - 1,
-                              self.cfg.bundle.local_neighbours, fixed)
+            sets = local_sets(
+                m.kf_T_cw, m.meas_kf, m.meas_pt, m.n_points_total, n - 1, self.cfg.bundle.local_neighbours, fixed
+            )
             fixed_poses = ~sets.adjust
             adjust_points = sets.points
         else:
@@ -286,13 +318,23 @@ class MapMaker:
             adjust_points = ~m.bad
         self.stats["ba_running"] = "local" if recent else "global"
         try:
-            res = self.bundle.adjust(m.kf_T_cw, m.X, m.meas_kf, m.meas_pt, m.meas_xy, m.meas_level, fixed_poses,
-                                     adjust_points, abort=self._abort)
+            res = self.bundle.adjust(
+                m.kf_T_cw,
+                m.X,
+                m.meas_kf,
+                m.meas_pt,
+                m.meas_xy,
+                m.meas_level,
+                fixed_poses,
+                adjust_points,
+                abort=self._abort,
+            )
         finally:
             self.stats["ba_running"] = None
         # (keyframes in the map, ms, converged) per run, for PTAM Table 2's buckets by map size.
         self.stats["local_ba" if recent else "global_ba"].append(
-            (n, 1e3 * res.phase_seconds.get("total", 0.0), bool(res.converged)))
+            (n, 1e3 * res.phase_seconds.get("total", 0.0), bool(res.converged))
+        )
         if res.failed:
             log.warning("bundle adjustment could not factorise the reduced system; the map is probably corrupt")
             self.recent_converged = self.full_converged = True
