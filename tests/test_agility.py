@@ -18,6 +18,8 @@ from ptam.system import LOST, RELOCALISING, System
 from ptam.tracking.quality import GOOD
 from tests.support import capture, sequence
 
+pytestmark = pytest.mark.slow  # replays a whole synthetic sequence
+
 KIDNAP_BLACK = (80, 109)
 SACCADE_PANS = ((75, 80), (95, 100))
 

@@ -20,6 +20,8 @@ from ptam.tracking.relocaliser import Relocaliser
 from ptam.tracking.rotation_estimator import RotationEstimator, rotation_from_se2, sample_offsets
 from tests.support import sequence
 
+pytestmark = pytest.mark.slow  # replays a whole synthetic sequence
+
 CFG = load_config()
 
 

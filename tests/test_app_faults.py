@@ -14,6 +14,8 @@ import yaml
 
 from tests.support import sequence
 
+pytestmark = pytest.mark.slow  # replays a whole synthetic sequence
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 ENV = {**os.environ, "DISPLAY": "", "WAYLAND_DISPLAY": ""}
 

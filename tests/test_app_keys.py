@@ -7,6 +7,7 @@ import termios
 import uuid
 
 import numpy as np
+import pytest
 import rerun as rr
 from rerun.chunk import RrdReader
 
@@ -18,6 +19,8 @@ from ptam.config import load_config
 from ptam.system import INITIALISING, System
 from ptam.viz.viewer import Viewer
 from tests.support import capture, sequence
+
+pytestmark = pytest.mark.slow  # replays a whole synthetic sequence
 
 FIRST, SECOND = 5, 45
 

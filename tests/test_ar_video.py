@@ -12,6 +12,8 @@ from ptam.errors import InputError
 from ptam.system import System
 from tests.support import capture, sequence
 
+pytestmark = pytest.mark.slow  # replays a whole synthetic sequence
+
 
 def _read_all(path):
     cap = cv2.VideoCapture(str(path))

@@ -14,6 +14,8 @@ from ptam.eval import associate, ate, read_tum
 from ptam.map.map_file import VERSION, load_map, save_map
 from tests.support import sequence
 
+pytestmark = pytest.mark.slow  # replays a whole synthetic sequence
+
 COLUMNS = (
     "X",
     "normal",

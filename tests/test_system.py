@@ -12,6 +12,8 @@ from ptam.eval.score import score_trajectory
 from ptam.system import run_dataset
 from tests.support import sequence
 
+pytestmark = pytest.mark.slow  # replays a whole synthetic sequence
+
 
 @pytest.fixture(scope="module")
 def short():

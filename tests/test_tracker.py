@@ -16,6 +16,8 @@ from ptam.synthetic import load_scene
 from ptam.tracking.tracker import Tracker
 from tests.support import sequence
 
+pytestmark = pytest.mark.slow  # replays a whole synthetic sequence
+
 N_FRAMES = 100
 CFG = default_config()
 

@@ -19,6 +19,8 @@ from ptam.viz import map_entities as scene
 from ptam.viz.viewer import Viewer
 from tests.support import capture, sequence
 
+pytestmark = pytest.mark.slow  # replays a whole synthetic sequence
+
 FRAMES = 120
 
 
