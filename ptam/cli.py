@@ -43,7 +43,11 @@ def build_parser() -> argparse.ArgumentParser:
 def _add_run(sub) -> argparse.ArgumentParser:
     run = sub.add_parser("run", help="track a camera, video or dataset and build a map")
     src = run.add_mutually_exclusive_group()
-    src.add_argument("--camera", metavar="v4l2[:DEVICE]", help="live camera, e.g. v4l2 or v4l2:/dev/video1")
+    src.add_argument(
+        "--camera",
+        metavar="v4l2[:DEVICE]|dc1394[:N|GUID]",
+        help="live camera: v4l2, v4l2:/dev/video1 (UVC) or dc1394, dc1394:1 (FireWire IIDC)",
+    )
     src.add_argument("--video", metavar="FILE", help="a video file")
     src.add_argument("--dataset", metavar="DIR", help="TUM RGB-D, EuRoC or a folder of images")
     run.add_argument("--calibration", metavar="CAMERA.yaml", help="camera calibration (default: DIR/camera.yaml)")
@@ -100,7 +104,9 @@ def _add_calibrate(sub) -> argparse.ArgumentParser:
     cal = sub.add_parser("calibrate", help="fit a camera model to chessboard views, write camera.yaml")
     cal_src = cal.add_mutually_exclusive_group()
     cal_src.add_argument("--video", metavar="FILE", help="a video of the board")
-    cal_src.add_argument("--camera", metavar="v4l2[:DEVICE]", help="live camera; Ctrl-C ends the capture")
+    cal_src.add_argument(
+        "--camera", metavar="v4l2[:DEVICE]|dc1394[:N|GUID]", help="live camera; Ctrl-C ends the capture"
+    )
     cal_src.add_argument("--images", metavar="DIR", help="a folder of images (or a TUM / EuRoC dataset)")
     cal.add_argument("--board", default="9x6", help="inner corners, e.g. 9x6")
     cal.add_argument("--square", type=float, default=0.04, help="square size in metres")

@@ -1,6 +1,8 @@
-"""Frame sources: video files, live v4l2 cameras, image folders, TUM RGB-D and EuRoC datasets."""
+"""Frame sources: video files, live v4l2 and FireWire IIDC (dc1394) cameras, image folders, TUM RGB-D and EuRoC
+datasets."""
 
 from .dataset import find_calibration, open_dataset
+from .dc1394 import Dc1394Source
 from .euroc import open_euroc
 from .folder import open_folder
 from .frame import Frame
@@ -11,5 +13,18 @@ from .tum import open_tum
 from .v4l2 import CameraSource
 from .video import VideoSource
 
-__all__ = ["Frame", "FrameSource", "ImageSequence", "VideoSource", "CameraSource", "open_source", "open_dataset",
-           "open_folder", "open_tum", "open_euroc", "find_calibration", "parse_size"]
+__all__ = [
+    "Frame",
+    "FrameSource",
+    "ImageSequence",
+    "VideoSource",
+    "CameraSource",
+    "Dc1394Source",
+    "open_source",
+    "open_dataset",
+    "open_folder",
+    "open_tum",
+    "open_euroc",
+    "find_calibration",
+    "parse_size",
+]

@@ -7,6 +7,8 @@ import re
 from ..config import CaptureConfig
 from ..errors import InputError
 from .dataset import open_dataset
+from .dc1394 import SCHEME as DC1394_SCHEME
+from .dc1394 import Dc1394Source
 from .source import FrameSource
 from .v4l2 import CameraSource
 from .video import VideoSource
@@ -28,8 +30,14 @@ def parse_size(size: str | tuple[int, int] | list[int]) -> tuple[int, int]:
     return w, h
 
 
-def open_source(cfg: CaptureConfig, camera: str | None = None, video: str | None = None, dataset: str | None = None,
-                fps: float | None = None, size: str | tuple[int, int] | None = None) -> FrameSource:
+def open_source(
+    cfg: CaptureConfig,
+    camera: str | None = None,
+    video: str | None = None,
+    dataset: str | None = None,
+    fps: float | None = None,
+    size: str | tuple[int, int] | None = None,
+) -> FrameSource:
     """Exactly one of ``camera``, ``video``, ``dataset``. ``fps`` stamps image folders and is requested from
     cameras; ``size`` is requested from cameras. Defaults come from ``cfg``, the ``capture`` config section."""
     given = [name for name, v in (("camera", camera), ("video", video), ("dataset", dataset)) if v is not None]
@@ -38,8 +46,11 @@ def open_source(cfg: CaptureConfig, camera: str | None = None, video: str | None
     if fps is not None and not fps > 0:
         raise InputError(f"frame rate must be positive, got {fps}")
     if camera is not None:
-        return CameraSource(camera, parse_size(size if size is not None else cfg.camera_size),
-                            fps if fps is not None else cfg.camera_fps)
+        camera_size = parse_size(size if size is not None else cfg.camera_size)
+        camera_fps = fps if fps is not None else cfg.camera_fps
+        if camera.partition(":")[0] == DC1394_SCHEME:
+            return Dc1394Source(camera, camera_size, camera_fps, cfg)
+        return CameraSource(camera, camera_size, camera_fps)
     if video is not None:
         return VideoSource(video, cfg.default_fps, cfg.video_missing_frames_tolerance)
     return open_dataset(dataset, fps if fps is not None else cfg.default_fps)

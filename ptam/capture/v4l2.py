@@ -12,6 +12,7 @@ import cv2
 
 from ..errors import InputError
 from .convert import grey_and_colour
+from .dc1394 import iidc_camera_present
 from .frame import Frame
 from .opencv_log import quiet_opencv
 from .source import FrameSource
@@ -33,6 +34,14 @@ def parse_camera(spec: str) -> int | str:
     raise InputError(f"unknown camera device '{device}' in '{spec}' (expected a number or a /dev path)")
 
 
+def _iidc_hint() -> str:
+    """FireWire IIDC cameras are not V4L2 devices (PTAM §7 captured them through libdc1394): when libdc1394
+    sees one, say so. One bus enumeration, never an error of its own."""
+    if iidc_camera_present():
+        return ": no V4L2 device, but an IIDC (FireWire) camera is on the bus: use --camera dc1394"
+    return ""
+
+
 class CameraSource(FrameSource):
     length = None
 
@@ -43,7 +52,7 @@ class CameraSource(FrameSource):
         self._cap = cv2.VideoCapture(device, cv2.CAP_V4L2)
         if not self._cap.isOpened():
             self._cap.release()
-            raise InputError(f"cannot open camera {spec}")
+            raise InputError(f"cannot open camera {spec}{_iidc_hint()}")
         self._cap.set(cv2.CAP_PROP_FRAME_WIDTH, size[0])
         self._cap.set(cv2.CAP_PROP_FRAME_HEIGHT, size[1])
         self._cap.set(cv2.CAP_PROP_FPS, fps)

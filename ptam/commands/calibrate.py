@@ -18,7 +18,7 @@ from ..errors import InputError
 
 def _open(args, cfg):
     if args.camera is None and args.video is None and args.images is None:
-        raise InputError("ptam calibrate: give --video FILE, --camera v4l2[:DEVICE] or --images DIR")
+        raise InputError("ptam calibrate: give --video FILE, --camera v4l2[:DEVICE] | dc1394[:N|GUID] or --images DIR")
     return open_source(cfg.capture, camera=args.camera, video=args.video, dataset=args.images)
 
 
