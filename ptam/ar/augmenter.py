@@ -16,9 +16,14 @@ class Augmenter:
 
     def __init__(self, camera, cfg, scene: str | None = None, T_pw: np.ndarray | None = None):
         self.plane = ArPlane(cfg.init, cfg.ar.plane_refresh_growth, T_pw)
+        self.ar_cfg = cfg.ar
         self.scene = make_scene(scene or cfg.ar.scene, cfg.ar)
         self.renderer = OverlayRenderer(camera, cfg.ar)
         self._last_timestamp: float | None = None
+
+    def set_scene(self, name: str) -> None:
+        """Switch to a new scene ``name`` (started afresh: the eyes' grid fades again, the game's score restarts)."""
+        self.scene = make_scene(name, self.ar_cfg)
 
     def augment(self, image: np.ndarray, T_cw: np.ndarray, timestamp: float, snapshot=None) -> np.ndarray:
         """BGR uint8 frame with the scene drawn for world→camera pose ``T_cw``; ``snapshot`` (the map) lets the

@@ -26,10 +26,10 @@ def ray_sphere_hits(origin: np.ndarray, direction: np.ndarray, centres: np.ndarr
     """Distance along the unit ray to each sphere (N,), inf where the ray misses it or it lies behind."""
     oc = centres - origin
     along = oc @ direction
-    d2 = (oc * oc).sum(axis=1) - along ** 2
-    half = np.sqrt(np.maximum(radius ** 2 - d2, 0.0))
+    d2 = (oc * oc).sum(axis=1) - along**2
+    half = np.sqrt(np.maximum(radius**2 - d2, 0.0))
     t = along - half
-    return np.where((d2 <= radius ** 2) & (along + half > 0), np.maximum(t, 0.0), np.inf)
+    return np.where((d2 <= radius**2) & (along + half > 0), np.maximum(t, 0.0), np.inf)
 
 
 class TargetGame:
@@ -44,14 +44,14 @@ class TargetGame:
         # Spread the first wave over the arena so it does not arrive all at once.
         half = ar_cfg.arena_half_size - self.radius
         self.pos = np.array([self._edge_point() * self.rng.uniform(self.keep_out / half, 1.0) for _ in range(n)])
-        self.wander = np.zeros(n)                 # heading offset from the direct course (rad)
+        self.wander = np.zeros(n)  # heading offset from the direct course (rad)
         self.R = np.tile(np.eye(3), (n, 1, 1))  # ball→plane, rolled as the ball moves
         self.dwell = np.zeros(n, np.int64)
         self.hits = 0
         self.bites = 0
-        self.aim: np.ndarray | None = None       # where the optical axis meets the plane (u, v)
-        self.aimed = -1                           # index of the target the optical axis passes through
-        self.bursts = np.zeros((0, 3))            # (u, v, age in frames)
+        self.aim: np.ndarray | None = None  # where the optical axis meets the plane (u, v)
+        self.aimed = -1  # index of the target the optical axis passes through
+        self.bursts = np.zeros((0, 3))  # (u, v, age in frames)
         self._fire = False
 
     @property
@@ -77,8 +77,9 @@ class TargetGame:
     def _move(self, dt: float) -> None:
         c = self.cfg
         limit = math.radians(c.target_wander_deg)
-        self.wander = np.clip(self.wander + c.target_turn_rate * math.sqrt(dt)
-                              * self.rng.standard_normal(len(self.pos)), -limit, limit)
+        self.wander = np.clip(
+            self.wander + c.target_turn_rate * math.sqrt(dt) * self.rng.standard_normal(len(self.pos)), -limit, limit
+        )
         heading = np.arctan2(-self.pos[:, 1], -self.pos[:, 0]) + self.wander
         step = c.target_speed * dt * np.stack([np.cos(heading), np.sin(heading)], axis=1)
         dist = np.linalg.norm(step, axis=1)
@@ -118,17 +119,29 @@ class TargetGame:
     def spheres(self) -> np.ndarray:
         n = len(self.pos)
         stripes = np.array([materials.TARGETS[i % len(materials.TARGETS)] for i in range(n)])
-        colours = np.stack([stripes, np.broadcast_to(materials.TARGET_STRIPE, (n, 3)),
-                            np.broadcast_to(materials.TARGET_CAP, (n, 3))], axis=1)
-        return sphere_records(self.centres, self.radius, self.R, colours, BALL, materials.BALL_SECTORS,
-                              math.cos(math.radians(materials.BALL_CAP_DEG)),
-                              materials.TARGET_SPECULAR)
+        colours = np.stack(
+            [stripes, np.broadcast_to(materials.TARGET_STRIPE, (n, 3)), np.broadcast_to(materials.TARGET_CAP, (n, 3))],
+            axis=1,
+        )
+        return sphere_records(
+            self.centres,
+            self.radius,
+            self.R,
+            colours,
+            BALL,
+            materials.BALL_SECTORS,
+            math.cos(math.radians(materials.BALL_CAP_DEG)),
+            materials.TARGET_SPECULAR,
+        )
 
     def decals(self) -> np.ndarray:
         c = self.cfg
         r = self.radius
-        parts = [decal_records(self.pos, 0.0, c.shadow_radius_rel * r, c.shadow_softness_rel * r, materials.SHADOW,
-                               c.shadow_alpha)]
+        parts = [
+            decal_records(
+                self.pos, 0.0, c.shadow_radius_rel * r, c.shadow_softness_rel * r, materials.SHADOW, c.shadow_alpha
+            )
+        ]
         if len(self.bursts):
             f = (self.bursts[:, 2] + 1.0) / c.burst_frames
             ro = r * (1.0 + (materials.BURST_GROWTH - 1.0) * f)
@@ -137,6 +150,14 @@ class TargetGame:
             parts.append(b)
         if self.aim is not None:
             colour = materials.AIM_RING_LOCKED if self.aimed >= 0 else materials.AIM_RING
-            parts.append(decal_records(self.aim, materials.AIM_RING_INNER * c.crosshair_radius, c.crosshair_radius,
-                                       0.0, colour, materials.AIM_RING_ALPHA))
+            parts.append(
+                decal_records(
+                    self.aim,
+                    materials.AIM_RING_INNER * c.crosshair_radius,
+                    c.crosshair_radius,
+                    0.0,
+                    colour,
+                    materials.AIM_RING_ALPHA,
+                )
+            )
         return np.concatenate(parts)

@@ -24,10 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import PtamError
+from ..errors import InputError, PtamError
 from ..geometry import se3
 from ..vocabulary import TrackingState
 from .augmenter import Augmenter
+from .scenes import SCENES
 from .video_writer import open_video_writer
 
 
@@ -40,12 +41,20 @@ class ArLayer:
     """Observer ``f(outcome, system)``; ``close()`` (or a ``with`` block) flushes the buffer and the video.
 
     ``latest``: (frame index, timestamp, BGR image) of the newest augmented frame; ``listeners``: callables
-    ``f(index, timestamp, bgr)`` run in the worker thread after each frame (a viewer); ``fire()``: a key press
-    for the game.
+    ``f(index, timestamp, bgr)`` run in the worker thread after each frame (a viewer: they must not block);
+    ``fire()`` and ``set_scene(name)``: key presses, called from any thread and applied by the worker before
+    its next frame (the scene is only ever touched in the worker's thread).
     """
 
-    def __init__(self, camera, cfg, scene: str | None = None, video_path: str | Path | None = None,
-                 fps: float | None = None, T_pw: np.ndarray | None = None):
+    def __init__(
+        self,
+        camera,
+        cfg,
+        scene: str | None = None,
+        video_path: str | Path | None = None,
+        fps: float | None = None,
+        T_pw: np.ndarray | None = None,
+    ):
         self.augmenter = Augmenter(camera, cfg, scene, T_pw)
         self.capacity = max(int(cfg.ar.queue_frames), 1)
         fps = cfg.capture.default_fps if fps is None else fps
@@ -62,6 +71,9 @@ class ArLayer:
         self._cond = threading.Condition()
         self._closing = False
         self._error: BaseException | None = None
+        self._fire = False
+        self._next_scene: str | None = None
+        self.scene_name = str(self.augmenter.scene.name)  # the scene shown, or asked for by set_scene
         self._thread = threading.Thread(target=self._run, name="ptam-ar", daemon=True)
         self._thread.start()
 
@@ -70,7 +82,16 @@ class ArLayer:
         return self.augmenter.scene
 
     def fire(self) -> None:
-        self.augmenter.scene.fire()
+        """A key press for the game: fires at the next augmented frame (other scenes ignore it)."""
+        with self._cond:
+            self._fire = True
+
+    def set_scene(self, name: str) -> None:
+        """Show scene ``name`` (eyes | game | grid | off) from the next augmented frame on."""
+        if name not in SCENES:  # fails here, in the caller's thread
+            raise InputError(f"unknown AR scene '{name}' (choose from {', '.join(SCENES)})")
+        with self._cond:
+            self._next_scene = self.scene_name = str(name)
 
     # -- tracker thread ------------------------------------------------------------------------------------
     def __call__(self, outcome, system) -> None:
@@ -83,7 +104,7 @@ class ArLayer:
             return
         snapshot = system.mapper.snapshot
         if outcome.result is None and self._pending:  # this frame completed stereo initialisation
-            poses = dict(system.trajectory[:-1])       # the first keyframe and the frames tracked since
+            poses = dict(system.trajectory[:-1])  # the first keyframe and the frames tracked since
             for f in self._pending:
                 T_wc = poses.get(float(f.timestamp))
                 if T_wc is not None:
@@ -122,7 +143,13 @@ class ArLayer:
                     if not self._items:
                         return
                     image, T_cw, index, timestamp, snapshot = self._items.popleft()
+                    fire, self._fire = self._fire, False
+                    next_scene, self._next_scene = self._next_scene, None
                     self._cond.notify_all()
+                if fire:  # pressed before the scene switch, if both are pending
+                    self.augmenter.scene.fire()
+                if next_scene is not None:
+                    self.augmenter.set_scene(next_scene)
                 t0 = time.perf_counter()
                 bgr = self.augmenter.augment(image, T_cw, timestamp, snapshot)
                 self.render_ms.append(1e3 * (time.perf_counter() - t0))
@@ -158,8 +185,7 @@ class ArLayer:
         self.close()
 
 
-def attach(system, scene: str | None = None, video_path: str | Path | None = None,
-           fps: float | None = None) -> ArLayer:
+def attach(system, scene: str | None = None, video_path: str | Path | None = None, fps: float | None = None) -> ArLayer:
     """An :class:`ArLayer` for ``system`` (its camera and config), registered as one of its observers.
 
     ``scene``: eyes | game | grid | off (default ``ar.scene``); ``video_path``: .avi or .mp4 to write the

@@ -15,10 +15,10 @@ import math
 import numpy as np
 
 from ..errors import InputError
+from ..vocabulary import ArScene
 from .drawlist import DrawList
 from .eyes import Eyes
 from .game import TargetGame
-from ..vocabulary import ArScene
 
 SCENES = tuple(ArScene)
 
@@ -81,9 +81,15 @@ class GameScene(Scene):
         g = self.game
         spheres = np.concatenate([self.eyes.spheres(), g.spheres()])
         decals = np.concatenate([self.eyes.shadows(), g.decals()])
-        return DrawList(spheres, decals, grid_alpha=self.cfg.game_grid_alpha, crosshair=True,
-                        crosshair_locked=g.aimed >= 0, dwell=g.dwell_fraction,
-                        text=[f"hits {g.hits}   bites {g.bites}"])
+        return DrawList(
+            spheres,
+            decals,
+            grid_alpha=self.cfg.game_grid_alpha,
+            crosshair=True,
+            crosshair_locked=g.aimed >= 0,
+            dwell=g.dwell_fraction,
+            text=[f"hits {g.hits}   bites {g.bites}"],
+        )
 
 
 _SCENES = {ArScene.EYES: EyesScene, ArScene.GAME: GameScene, ArScene.GRID: GridScene, ArScene.OFF: Scene}

@@ -6,6 +6,11 @@ and decals, screen cross-hair — timing ``Augmenter.augment`` alone (the AR wor
 enqueues). A warm-up frame excludes numba compilation. Wall-clock time is the figure; the thread's CPU time is
 shown next to it because on a loaded machine the wall clock also counts time spent waiting for a core. The
 video encoder's cost per frame is shown apart: it runs in the same worker thread but is not rendering.
+
+Then what the AR view costs the tracker: the same frames tracked again (sync) with a viewer recording to a
+temporary .rrd, once without AR and once per AR scene shown in it (the AR worker's frames logged as
+``camera/augmented`` by the viewer's thread, as in ``ptam run``); the tracker's median ms per frame for each, and
+the frames the viewer or the AR worker had no time for.
 """
 
 from __future__ import annotations
@@ -16,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..ar import SCENES, Augmenter
+from ..ar import SCENES, Augmenter, attach
 from ..ar.layer import frame_image
 from ..ar.video_writer import FOURCC, open_video_writer
 from ..camera import load_camera
@@ -24,6 +29,8 @@ from ..capture import open_dataset
 from ..errors import InputError
 from ..synthetic import ensure_sequence
 from ..system import System
+from ..viz.sinks import open_recording
+from ..viz.viewer import Viewer
 from ..vocabulary import ArScene, RunMode
 
 RENDER_BUDGET_MS = 5.0  # issue 9: the overlay must cost less than 5 ms per frame at 640x480
@@ -56,8 +63,10 @@ def run_ar_benchmark(cfg, scene: str = "two_wall", out=print, frames: int = 200)
     camera, kept, snapshot = _tracked_frames(cfg, seq, frames)
     if len(kept) < 2:
         raise InputError(f"bench ar: only {len(kept)} frames of {scene} were tracked")
-    out(f"AR overlay cost per frame, {len(kept)} tracked frames at {camera.width}x{camera.height}, map of "
-        f"{snapshot.n_points} points (budget {RENDER_BUDGET_MS:g} ms)")
+    out(
+        f"AR overlay cost per frame, {len(kept)} tracked frames at {camera.width}x{camera.height}, map of "
+        f"{snapshot.n_points} points (budget {RENDER_BUDGET_MS:g} ms)"
+    )
     out(f"{'scene':<10}{'mean (ms)':>11}{'median (ms)':>13}{'p95 (ms)':>10}{'max (ms)':>10}{'CPU mean (ms)':>15}")
     rows = {}
     last = None
@@ -71,8 +80,13 @@ def run_ar_benchmark(cfg, scene: str = "two_wall", out=print, frames: int = 200)
             ms.append(1e3 * (time.perf_counter() - t0))
             cpu.append(1e3 * (time.thread_time() - c0))
         ms = np.array(ms)
-        rows[name] = dict(mean=float(ms.mean()), median=float(np.median(ms)), p95=float(np.percentile(ms, 95)),
-                          max=float(ms.max()), cpu_mean=float(np.mean(cpu)))
+        rows[name] = dict(
+            mean=float(ms.mean()),
+            median=float(np.median(ms)),
+            p95=float(np.percentile(ms, 95)),
+            max=float(ms.max()),
+            cpu_mean=float(np.mean(cpu)),
+        )
         r = rows[name]
         out(f"{name:<10}{r['mean']:>11.2f}{r['median']:>13.2f}{r['p95']:>10.2f}{r['max']:>10.2f}{r['cpu_mean']:>15.2f}")
     encode = {}
@@ -84,9 +98,57 @@ def run_ar_benchmark(cfg, scene: str = "two_wall", out=print, frames: int = 200)
                 writer.write(last)
             encode[codec] = 1e3 * (time.perf_counter() - t0) / len(kept)
             writer.release()
-    out("video encoding (worker thread, not rendering): "
-        + ", ".join(f"{codec} {v:.2f} ms" for codec, v in encode.items()))
+    out(
+        "video encoding (worker thread, not rendering): "
+        + ", ".join(f"{codec} {v:.2f} ms" for codec, v in encode.items())
+    )
+    viewer_rows = _viewer_rows(cfg, seq, frames, out)
     worst = max(r["mean"] for r in rows.values())
     result = dict(ar_render_ms=worst)
     out(f"ar_render_ms={worst:.2f}")
-    return {**result, "scenes": rows, "encode_ms": encode, "frames": len(kept)}
+    return {**result, "scenes": rows, "encode_ms": encode, "frames": len(kept), "viewer": viewer_rows}
+
+
+def _track_with_viewer(cfg, seq: Path, frames: int, scene: str | None) -> dict:
+    """Track the first ``frames`` frames (sync) with a viewer recording to a temporary .rrd and, if ``scene``,
+    the AR worker feeding it augmented frames; the tracker's ms per frame and what was not shown."""
+    camera = load_camera(seq / "camera.yaml")
+    ms = []
+    with tempfile.TemporaryDirectory() as tmp:
+        recording = open_recording(cfg.viewer, rrd=str(Path(tmp) / "bench.rrd"))
+        viewer = Viewer(recording.stream, camera, cfg, augmented=scene is not None)
+        with open_dataset(seq, cfg.capture.default_fps) as src, System(camera, cfg, mode=RunMode.SYNC) as system:
+            system.observers.append(viewer)
+            layer = attach(system, scene, fps=src.fps) if scene is not None else None
+            if layer is not None:
+                layer.listeners.append(viewer.augmented)
+            try:
+                for frame in src:
+                    if frame.index >= frames:
+                        break
+                    result = system.process(frame).result
+                    if result is not None:
+                        ms.append(result.timings.total)
+            finally:
+                if layer is not None:
+                    layer.close()
+                viewer.close(system)
+                recording.close()
+    ar_dropped = (layer.dropped + viewer.ar_dropped) if layer is not None else 0
+    return dict(
+        median=float(np.median(ms)), p95=float(np.percentile(ms, 95)), dropped=viewer.dropped, ar_dropped=ar_dropped
+    )
+
+
+def _viewer_rows(cfg, seq: Path, frames: int, out) -> dict:
+    """The tracker's median ms with the viewer recording, without the AR view and with each scene's."""
+    out("tracker ms per frame (sync) with the viewer recording to an .rrd, without and with the AR view")
+    out(f"{'AR view':<10}{'median (ms)':>13}{'p95 (ms)':>10}{'frames not shown':>18}{'AR frames not shown':>21}")
+    rows = {}
+    for scene in (None, *dict.fromkeys((cfg.ar.scene, ArScene.GAME))):
+        if scene == ArScene.OFF:
+            continue
+        name = str(scene or ArScene.OFF)
+        r = rows[name] = _track_with_viewer(cfg, seq, frames, scene)
+        out(f"{name:<10}{r['median']:>13.2f}{r['p95']:>10.2f}{r['dropped']:>18d}{r['ar_dropped']:>21d}")
+    return rows

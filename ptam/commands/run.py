@@ -1,8 +1,9 @@
 """``ptam run``: track a camera, a video or a dataset (or the embedded two-wall default) and build a map.
 
-The viewer (rerun) opens by itself when there is a display; ``--rrd FILE`` records instead, ``--serve`` serves the
-web viewer on 127.0.0.1, ``--no-viewer`` logs nothing. Live cameras are driven from the terminal as in PTAM:
-space takes the two keyframes of stereo initialisation (§6.1), ``r`` resets, ``q`` quits. Everything asked for
+The viewer (rerun) opens by itself when there is a display, showing the augmented image first (``--ar``, default
+``ar.scene``); ``--rrd FILE`` records instead, ``--serve`` serves the web viewer on 127.0.0.1, ``--no-viewer`` logs
+nothing. Live cameras are driven from the terminal as in PTAM: space takes the two keyframes of stereo
+initialisation (§6.1), ``r`` resets, ``q`` quits; ``a`` switches the AR scene, ``f`` fires. Everything asked for
 (trajectory, keyframes, map) is written at the end of the stream, on Ctrl-C and on errors alike (a camera that
 disappears, a truncated video), then a summary is printed. ``--load-map`` starts from a saved map;
 ``--localize-only`` tracks against it without mapping. A dataset that carries ``groundtruth.txt`` (TUM layout,
@@ -38,6 +39,13 @@ from .run_summary import print_summary
 DEFAULT_SCENE = "two_wall"
 PAPER_ATE_MM = 6.0  # PTAM §7.3: standard deviation from ground truth on its synthetic two-wall sequence
 KEY_INIT, KEY_RESET, KEY_QUIT = " ", "r", "q"
+KEY_FIRE, KEY_SCENE = "f", "a"  # the game's fire button; the next AR scene (PTAM's "Draw AR" toggle, its eyes included)
+SCENE_CYCLE = (ArScene.GRID, ArScene.EYES, ArScene.GAME, ArScene.OFF)
+KEYS_HELP = "ptam: keys: space = stereo-initialisation keyframes (PTAM §6.1), r = reset, q = quit"
+AR_KEYS_HELP = (
+    "ptam: AR keys: a = next AR scene (grid, eyes = PTAM's EyeGame, game, off), "
+    "f = fire in the game (aiming at a target for ar.dwell_frames frames also hits it)"
+)
 
 log = logging.getLogger("ptam")
 
@@ -59,8 +67,12 @@ def _check_arguments(args) -> None:
         raise InputError("--localize-only needs a map to track against: add --load-map FILE")
     if args.no_viewer and (args.rrd or args.serve):
         raise InputError("--no-viewer logs nothing; leave it out to use --rrd or --serve")
-    for option, path in (("--trajectory", args.trajectory), ("--keyframes", args.keyframes), ("--map", args.map),
-                         ("--rrd", args.rrd)):
+    for option, path in (
+        ("--trajectory", args.trajectory),
+        ("--keyframes", args.keyframes),
+        ("--map", args.map),
+        ("--rrd", args.rrd),
+    ):
         if path:
             directory = os.path.dirname(os.path.abspath(path))
             if not os.path.isdir(directory):
@@ -72,11 +84,14 @@ def _open(args, cfg, map_camera):
     if args.camera is None and args.video is None and dataset is None:
         from ..synthetic import ensure_sequence
 
-        print(f"ptam: no source given: replaying the embedded synthetic scene '{DEFAULT_SCENE}' "
-              f"(rendered once, cached)", file=sys.stderr)
+        print(
+            f"ptam: no source given: replaying the embedded synthetic scene '{DEFAULT_SCENE}' (rendered once, cached)",
+            file=sys.stderr,
+        )
         dataset = str(ensure_sequence(DEFAULT_SCENE, cfg.synthetic))
-    source = open_source(cfg.capture, camera=args.camera, video=args.video, dataset=dataset, fps=args.fps,
-                         size=args.size)
+    source = open_source(
+        cfg.capture, camera=args.camera, video=args.video, dataset=dataset, fps=args.fps, size=args.size
+    )
     try:
         calibration = args.calibration or (find_calibration(dataset) if dataset else None)
         if calibration is None and map_camera is None:
@@ -84,12 +99,13 @@ def _open(args, cfg, map_camera):
         camera = load_camera(calibration) if calibration else map_camera
         if camera.size != source.size:
             where = f"calibration {calibration}" if calibration else "the map's camera"
-            raise InputError(f"{where} is for {camera.width}x{camera.height} images but "
-                             f"{source.name} delivers {source.size[0]}x{source.size[1]}")
+            raise InputError(
+                f"{where} is for {camera.width}x{camera.height} images but "
+                f"{source.name} delivers {source.size[0]}x{source.size[1]}"
+            )
         Pyramid.build(np.zeros((camera.height, camera.width), np.uint8), cfg.image)  # frames fit the pyramid
         if map_camera is not None and camera.to_dict() != map_camera.to_dict():
-            log.warning("the calibration differs from the camera the map was built with; tracking uses %s",
-                        calibration)
+            log.warning("the calibration differs from the camera the map was built with; tracking uses %s", calibration)
     except BaseException:
         source.close()
         raise
@@ -104,8 +120,11 @@ def _open_recording(args, cfg):
 
     spawn = not (args.rrd or args.serve)
     if spawn and not has_display():
-        print("ptam: no display (DISPLAY/WAYLAND_DISPLAY unset): not opening the viewer; use --serve or --rrd FILE "
-              "to see the run", file=sys.stderr)
+        print(
+            "ptam: no display (DISPLAY/WAYLAND_DISPLAY unset): not opening the viewer; use --serve or --rrd FILE "
+            "to see the run",
+            file=sys.stderr,
+        )
         return None
     try:
         recording = open_recording(cfg.viewer, spawn=spawn, rrd=args.rrd, serve=args.serve)
@@ -126,15 +145,18 @@ def _write_outputs(args, system: System, camera, cfg) -> None:
         if args.trajectory:
             t = np.array([p[0] for p in system.trajectory])
             T = np.array([p[1] for p in system.trajectory]).reshape(-1, 4, 4)
-            write_tum(args.trajectory, t, T, header="ptam trajectory: timestamp tx ty tz qx qy qz qw "
-                                                    "(camera-to-world)")
+            write_tum(args.trajectory, t, T, header="ptam trajectory: timestamp tx ty tz qx qy qz qw (camera-to-world)")
         if args.keyframes:
             if snap is None or snap.n_keyframes == 0:
                 write_tum(args.keyframes, np.zeros(0), np.zeros((0, 4, 4)), header="ptam keyframes (none)")
             else:
                 t = np.array([k.timestamp for k in snap.keyframes])
-                write_tum(args.keyframes, t, np.linalg.inv(snap.kf_T_cw),
-                          header="ptam keyframes: timestamp tx ty tz qx qy qz qw (camera-to-world)")
+                write_tum(
+                    args.keyframes,
+                    t,
+                    np.linalg.inv(snap.kf_T_cw),
+                    header="ptam keyframes: timestamp tx ty tz qx qy qz qw (camera-to-world)",
+                )
     except OSError as e:
         raise InputError(f"cannot write {e.filename}: {e.strerror}") from None
     if args.map:
@@ -152,26 +174,33 @@ def _score(dataset: str | None, system: System, embedded: bool) -> None:
     if not np.isfinite(r.ate_rmse_m):
         return
     paper = f" (PTAM §7.3 reports {PAPER_ATE_MM:g} mm on its two-wall sequence)" if embedded else ""
-    print(f"ATE against {gt}: {1e3 * r.ate_rmse_m:.2f} mm RMSE after Sim(3) alignment over {r.matched}/"
-          f"{r.n_groundtruth} poses, path {r.path_length_m:.2f} m{paper}")
+    print(
+        f"ATE against {gt}: {1e3 * r.ate_rmse_m:.2f} mm RMSE after Sim(3) alignment over {r.matched}/"
+        f"{r.n_groundtruth} poses, path {r.path_length_m:.2f} m{paper}"
+    )
 
 
 def _status(system: System, outcome, feed):
     """The status line's text for the latest frame."""
+
     def text(fps: float) -> str:
         snap = system.mapper.snapshot
         state = str(outcome.state)
         if outcome.state == TrackingState.INITIALISING and system.init_mode == InitMode.KEY:
-            state += (": move the camera sideways, then press space" if system.init_started
-                      else ": press space to take the first keyframe")
+            state += (
+                ": move the camera sideways, then press space"
+                if system.init_started
+                else ": press space to take the first keyframe"
+            )
         kfs, pts = (snap.n_keyframes, snap.n_points) if snap is not None else (0, 0)
         dropped = f"  dropped {feed.dropped}" if isinstance(feed, RealtimeFeed) else ""
         return f"{state}  {fps:.1f} fps  kfs {kfs}  points {pts}{dropped}"
+
     return text
 
 
-def _keys(keys: TerminalKeys, system: System, display: Display) -> bool:
-    """Act on the keys pressed since the last frame; True to quit."""
+def _keys(keys: TerminalKeys, system: System, display: Display, ar=None) -> bool:
+    """Act on the keys pressed since the last frame; True to quit. ``ar``: the AR layer, if any."""
     for key in keys.read().lower():
         if key == KEY_QUIT:
             return True
@@ -183,7 +212,23 @@ def _keys(keys: TerminalKeys, system: System, display: Display) -> bool:
             else:
                 system.reset()
                 display.write("ptam: reset: the map is discarded; initialise again")
+        elif key in (KEY_FIRE, KEY_SCENE):
+            _ar_key(key, ar, display)
     return False
+
+
+def _ar_key(key: str, ar, display: Display) -> None:
+    """f fires, a switches to the next scene; both reach the AR worker, which applies them at its next frame."""
+    if ar is None:
+        display.write("ptam: no AR view in this run (--ar off, or no viewer and no --ar-video)")
+    elif key == KEY_SCENE:
+        scene = SCENE_CYCLE[(SCENE_CYCLE.index(ar.scene_name) + 1) % len(SCENE_CYCLE)]
+        ar.set_scene(scene)
+        display.write(f"ptam: AR scene {scene}")
+    elif ar.scene_name == ArScene.GAME:
+        ar.fire()
+    else:
+        display.write(f"ptam: f fires in the game; the AR scene is {ar.scene_name} (a switches scenes)")
 
 
 def _serve_until_interrupted(recording, stop: _StopRequest) -> None:
@@ -247,38 +292,89 @@ def _main(args, cfg, stop: _StopRequest) -> int:
     return code
 
 
-def _run(args, cfg, source, camera, mode, init_frames, loaded, recording, live, stop) -> tuple[System, int]:
-    """Process the source to its end (or q, Ctrl-C, an input error); outputs are written whatever happens."""
-    keys = TerminalKeys(sys.stdin if live else None)
-    init_mode = InitMode.KEY if keys.active and init_frames is None else InitMode.AUTO
-    system = System(camera, cfg, mode=mode, init_frames=init_frames, map_=loaded.map if loaded else None,
-                    localize_only=args.localize_only, init_mode=init_mode)
+def _ar_scene(args, cfg, viewing: bool) -> str | None:
+    """The AR scene to draw (``--ar``, default config ``ar.scene``), or None for no AR worker at all: AR is drawn
+    when a viewer shows it or ``--ar-video`` writes it (``--ar off`` with a video: the plain frames)."""
+    scene = args.ar or cfg.ar.scene
+    if args.ar_video:
+        return scene
+    if scene == ArScene.OFF or not viewing:
+        if args.ar not in (None, ArScene.OFF):
+            print(f"ptam: --ar {args.ar}: no viewer and no --ar-video to show it; nothing is drawn", file=sys.stderr)
+        return None
+    return scene
+
+
+def _attach_observers(args, cfg, system: System, camera, recording, fps: float):
+    """The viewer (when recording) and the AR worker (when shown or written): both observe off this thread. The
+    viewer's ``augmented`` is the AR worker's listener: augmented frames go straight to the viewer's queue."""
+    scene = _ar_scene(args, cfg, recording is not None)
+    shown = recording is not None and scene not in (None, ArScene.OFF)
     viewer = None
     if recording is not None:
         from ..viz.viewer import Viewer
 
-        viewer = Viewer(recording.stream, camera, cfg)
+        viewer = Viewer(recording.stream, camera, cfg, augmented=shown)
         system.observers.append(viewer)
     ar = None
-    if args.ar_video or args.ar not in (None, ArScene.OFF):  # augmented frames in the AR worker (ptam.ar), off this thread
+    if scene is not None:
         from ..ar import attach
 
-        ar = attach(system, args.ar, args.ar_video, source.fps)
+        ar = attach(system, scene, args.ar_video, fps)
+        if shown:
+            ar.listeners.append(viewer.augmented)
+    return viewer, ar
+
+
+def _close_observers(system: System, viewer, ar) -> None:
+    """The AR worker first (its last frames go to the video and the viewer), then the viewer."""
+    try:
+        if ar is not None:
+            ar.close()  # flushes the video
+    finally:
+        if viewer is not None:
+            viewer.close(system)
+            if viewer.error is not None:
+                print(f"ptam: the viewer could not log part of the run: {viewer.error}", file=sys.stderr)
+            if viewer.ar_dropped:
+                print(f"ptam: augmented frames not shown in the viewer: {viewer.ar_dropped}", file=sys.stderr)
+
+
+def _process(system: System, feed, keys: TerminalKeys, display: Display, stop: _StopRequest, ar=None) -> bool:
+    """Every frame of ``feed`` through the system, until its end, q, or a stop request; True if interrupted."""
+    for frame in feed:
+        outcome = system.process(frame)
+        display.frame_done(_status(system, outcome, feed))
+        if keys.active and _keys(keys, system, display, ar):
+            return False
+        if stop.requested:
+            return True
+    return False
+
+
+def _run(args, cfg, source, camera, mode, init_frames, loaded, recording, live, stop) -> tuple[System, int]:
+    """Process the source to its end (or q, Ctrl-C, an input error); outputs are written whatever happens."""
+    keys = TerminalKeys(sys.stdin if live else None)
+    init_mode = InitMode.KEY if keys.active and init_frames is None else InitMode.AUTO
+    system = System(
+        camera,
+        cfg,
+        mode=mode,
+        init_frames=init_frames,
+        map_=loaded.map if loaded else None,
+        localize_only=args.localize_only,
+        init_mode=init_mode,
+    )
+    viewer, ar = _attach_observers(args, cfg, system, camera, recording, source.fps)
     feed = RealtimeFeed(source) if mode == RunMode.REALTIME else source
     if init_mode == InitMode.KEY:
-        print("ptam: keys: space = stereo-initialisation keyframes (PTAM §6.1), r = reset, q = quit",
-              file=sys.stderr)
+        print(KEYS_HELP, file=sys.stderr)
+    if keys.active and ar is not None:
+        print(AR_KEYS_HELP, file=sys.stderr)
     interrupted, error = False, None
     try:
         with system, keys, Display(source.length, cfg.viewer.status_interval_s) as display:
-            for frame in feed:
-                outcome = system.process(frame)
-                display.frame_done(_status(system, outcome, feed))
-                if keys.active and _keys(keys, system, display):
-                    break
-                if stop.requested:
-                    interrupted = True
-                    break
+            interrupted = _process(system, feed, keys, display, stop, ar)
     except KeyboardInterrupt:
         interrupted = True
     except PtamError as e:
@@ -286,13 +382,10 @@ def _run(args, cfg, source, camera, mode, init_frames, loaded, recording, live, 
     finally:
         if isinstance(feed, RealtimeFeed):
             feed.close()
-        if viewer is not None:
-            viewer.close(system)
-            if viewer.error is not None:
-                print(f"ptam: the viewer could not log part of the run: {viewer.error}", file=sys.stderr)
-        _write_outputs(args, system, camera, cfg)
-        if ar is not None:
-            ar.close()  # flushes the video
+        try:
+            _close_observers(system, viewer, ar)
+        finally:
+            _write_outputs(args, system, camera, cfg)
     if interrupted:
         print("ptam: interrupted; wrote what was computed", file=sys.stderr)
     print_summary(system, mode, feed.dropped if isinstance(feed, RealtimeFeed) else None, viewer)

@@ -101,6 +101,10 @@ class CaptureConfig:
     camera_size: list[int]
     camera_fps: float
     video_missing_frames_tolerance: int
+    dc1394_mode: str
+    dc1394_iso_speed: int
+    dc1394_dma_buffers: int
+    dc1394_frame_timeout_s: float
 
 
 @dataclass(frozen=True)
@@ -248,6 +252,7 @@ class ViewerConfig:
     serve_start_timeout_s: float
     server_memory_limit: str
     jpeg_quality: int
+    ar_image_lossless: bool
     thumbnail_level: int
     frustum_depth: float
     camera_frustum_depth: float
@@ -320,5 +325,4 @@ class Config:
         """A copy with ``section.key`` values changed, e.g. ``cfg.replace(**{"tracker.max_patches": 500})``."""
         from .loader import apply_overrides  # the loader builds Configs; sections must not import it at load
 
-        return apply_overrides(self, [f"{k}={v!r}" if isinstance(v, str) else f"{k}={v}"
-                                      for k, v in changes.items()])
+        return apply_overrides(self, [f"{k}={v!r}" if isinstance(v, str) else f"{k}={v}" for k, v in changes.items()])

@@ -27,6 +27,6 @@ def grid_lines(spacing: float, half_cells: int) -> tuple[np.ndarray, np.ndarray]
 def level_intrinsics(camera, level: int) -> tuple[tuple[float, float], tuple[float, float], tuple[int, int]]:
     """Focal lengths, principal point (in rerun's pixel convention) and size of pyramid level ``level``: the linear
     part of the camera, enough to draw a frustum."""
-    s = 2.0 ** level
+    s = 2.0**level
     c = zero_to_level(np.array([[camera.cx, camera.cy]]), level)[0] + RERUN_PIXEL_OFFSET
     return (camera.fx / s, camera.fy / s), (float(c[0]), float(c[1])), (camera.width >> level, camera.height >> level)

@@ -10,16 +10,21 @@ from ..vocabulary import TrackingState as S
 # used with PTAM's four) pale yellow. Used for measurements (by search level) and map points (by source level).
 LEVEL_COLOURS = np.array([[255, 0, 0], [255, 255, 0], [0, 255, 0], [0, 0, 178], [255, 255, 178]], np.uint8)
 
-FAILED_COLOUR = (150, 150, 150)      # measurements searched but not found
-TRAIL_COLOUR = (255, 160, 0)         # PTAM §6.1 stereo-initialisation trails
+FAILED_COLOUR = (150, 150, 150)  # measurements searched but not found
+TRAIL_COLOUR = (255, 160, 0)  # PTAM §6.1 stereo-initialisation trails
 TRAJECTORY_COLOUR = (255, 140, 0)
 KEYFRAME_COLOUR = (80, 160, 255)
-GRID_COLOUR = (128, 128, 128)        # PTAM code MapViewer::DrawGrid: grey lines ...
-GRID_AXIS_COLOUR = (255, 255, 255)   # ... the two through the origin white
+GRID_COLOUR = (128, 128, 128)  # PTAM code MapViewer::DrawGrid: grey lines ...
+GRID_AXIS_COLOUR = (255, 255, 255)  # ... the two through the origin white
 
 # Tracking states in the state timeline.
-STATE_COLOURS = {S.INITIALISING: (120, 120, 255), S.GOOD: (0, 200, 0), S.POOR: (230, 200, 0), S.LOST: (220, 0, 0),
-                 S.RELOCALISING: (255, 120, 0)}
+STATE_COLOURS = {
+    S.INITIALISING: (120, 120, 255),
+    S.GOOD: (0, 200, 0),
+    S.POOR: (230, 200, 0),
+    S.LOST: (220, 0, 0),
+    S.RELOCALISING: (255, 120, 0),
+}
 
 
 def level_colours(levels: np.ndarray) -> np.ndarray:

@@ -68,14 +68,31 @@ class WebServer:
         grpc, web = viewer_cfg.grpc_port, viewer_cfg.web_port
         for name, port in (("viewer.grpc_port", grpc), ("viewer.web_port", web)):
             if not _port_free(port):
-                raise InputError(f"cannot serve the web viewer: port {port} on {LOCALHOST} is in use "
-                                 f"(choose another with --set {name}=PORT)")
-        cmd = [_rerun_executable(), "--serve-web", "--bind", LOCALHOST, "--port", str(grpc),
-               "--web-viewer-port", str(web), "--server-memory-limit", viewer_cfg.server_memory_limit]
+                raise InputError(
+                    f"cannot serve the web viewer: port {port} on {LOCALHOST} is in use "
+                    f"(choose another with --set {name}=PORT)"
+                )
+        cmd = [
+            _rerun_executable(),
+            "--serve-web",
+            "--bind",
+            LOCALHOST,
+            "--port",
+            str(grpc),
+            "--web-viewer-port",
+            str(web),
+            "--server-memory-limit",
+            viewer_cfg.server_memory_limit,
+        ]
         # Own session: a Ctrl-C meant for the run must not stop the server before the outputs are written.
-        process = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                                   stderr=subprocess.DEVNULL, start_new_session=True,
-                                   env={**os.environ, "RERUN_APP_ONLY": "true"})
+        process = subprocess.Popen(
+            cmd,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            start_new_session=True,
+            env={**os.environ, "RERUN_APP_ONLY": "true"},
+        )
         deadline = time.monotonic() + viewer_cfg.serve_start_timeout_s
         while not (_listening(grpc) and _listening(web)):
             if process.poll() is not None or time.monotonic() > deadline:

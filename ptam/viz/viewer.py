@@ -10,6 +10,9 @@ What is logged (entity paths):
 
 * ``world/camera`` current pose; ``world/camera/image`` the frame, with ``found`` measurements coloured by pyramid
   level (PTAM's colours), ``failed`` ones as small grey dots, and the stereo-initialisation ``trails`` (PTAM §6.1);
+* ``camera/augmented`` the AR worker's augmented frame (PTAM §7.5: what the user looks at), as rendered through the
+  lens model, at the same ``frame`` / ``time`` as its camera image: :meth:`Viewer.augmented` is the AR layer's
+  listener; it runs in the AR worker's thread and only enqueues (skipped, counted in ``ar_dropped``, when full);
 * ``world/points`` the good map points coloured by source level; ``world/keyframes/NNNN`` one frustum per
   keyframe with its thumbnail; ``world/trajectory`` the tracked camera path; ``world/grid`` the dominant plane
   z = 0 once a map exists (PTAM §6.1);
@@ -31,9 +34,9 @@ import rerun as rr
 
 from ..geometry import se3
 from ..map.snapshot import MapSnapshot
-from . import map_entities, palette
 from ..vocabulary import TrackingState
-from .blueprint import default_blueprint
+from . import map_entities, palette
+from .blueprint import AUGMENTED_IMAGE, default_blueprint
 
 _BA_CODES = {None: 0, "local": 1, "global": 2}
 
@@ -42,29 +45,42 @@ _BA_CODES = {None: 0, "local": 1, "global": 2}
 class _Item:
     """One frame as handed to the logging thread: references only, nothing copied in the tracker's thread."""
 
-    outcome: object            # FrameOutcome, or None for the final state at close
+    outcome: object  # FrameOutcome, or None for the final state at close
     state: str
     snapshot: MapSnapshot | None
-    trajectory: list           # System.trajectory (append-only; replaced by a reset) ...
-    n_trajectory: int          # ... and its length at this frame
-    trails: tuple | None       # (start_xy, current_xy) while initialising
+    trajectory: list  # System.trajectory (append-only; replaced by a reset) ...
+    n_trajectory: int  # ... and its length at this frame
+    trails: tuple | None  # (start_xy, current_xy) while initialising
     mapper_queue: int
     ba_running: str | None
 
 
+@dataclass(frozen=True)
+class _ArFrame:
+    """One augmented frame as handed over by the AR worker (its own new image: nothing shared is copied)."""
+
+    index: int
+    timestamp: float
+    bgr: np.ndarray
+
+
 class Viewer:
     """``Viewer(recording, camera, cfg)`` then ``system.observers.append(viewer)``; :meth:`close` at the end logs
-    the final map and trajectory and waits for the logging thread."""
+    the final map and trajectory and waits for the logging thread. ``augmented=True``: augmented frames will be
+    passed to :meth:`augmented`, and the layout shows them first."""
 
-    def __init__(self, recording: rr.RecordingStream, camera, cfg):
+    def __init__(self, recording: rr.RecordingStream, camera, cfg, augmented: bool = False):
         self.rec = recording
         self.camera = camera
         self.cfg = cfg.viewer
+        self.show_augmented = augmented
         self.queue: queue.Queue = queue.Queue(maxsize=self.cfg.queue_size)
         self.dropped = 0
+        self.ar_dropped = 0  # augmented frames not logged (the logging thread had no time for them)
+        self._frame_time: tuple[int, float] | None = None  # the latest tracked frame's place on the timelines
         self.observe_ms: list[float] = []  # time spent in the tracker's thread, per frame
         self._snapshot: MapSnapshot | None = None
-        self._kf_logged: tuple = ()        # KeyFrame objects whose thumbnails are logged
+        self._kf_logged: tuple = ()  # KeyFrame objects whose thumbnails are logged
         self._kf_poses = np.zeros((0, 4, 4))
         self._trajectory: list | None = None
         self._traj_xyz = np.zeros((0, 3))
@@ -88,9 +104,28 @@ class Viewer:
     def _capture(self, outcome, system) -> _Item:
         initialising = outcome is not None and outcome.state == TrackingState.INITIALISING
         trails = (system.trails.start_xy, system.trails.current_xy) if initialising and system.init_started else None
-        return _Item(outcome, outcome.state if outcome is not None else self._state or TrackingState.INITIALISING,
-                     system.mapper.snapshot, system.trajectory, len(system.trajectory), trails,
-                     system.mapper.queue_size(), system.mapper.stats.get("ba_running"))
+        return _Item(
+            outcome,
+            outcome.state if outcome is not None else self._state or TrackingState.INITIALISING,
+            system.mapper.snapshot,
+            system.trajectory,
+            len(system.trajectory),
+            trails,
+            system.mapper.queue_size(),
+            system.mapper.stats.get("ba_running"),
+        )
+
+    # -- the AR worker's thread -------------------------------------------------------------------------------
+    def augmented(self, index: int, timestamp: float, bgr: np.ndarray) -> None:
+        """The AR layer's listener: queue augmented frame ``bgr`` (BGR uint8) of frame ``index`` for logging as
+        ``camera/augmented``; never waits (a full queue or a closed viewer skips it)."""
+        if not self._thread.is_alive():
+            self.ar_dropped += 1
+            return
+        try:
+            self.queue.put_nowait(_ArFrame(int(index), float(timestamp), bgr))
+        except queue.Full:
+            self.ar_dropped += 1
 
     def close(self, system=None) -> None:
         """Log ``system``'s final map and trajectory (never dropped), stop the logging thread, flush."""
@@ -108,7 +143,10 @@ class Viewer:
             if item is None:
                 return
             try:
-                self._log(item)
+                if isinstance(item, _ArFrame):
+                    self._log_augmented(item)
+                else:
+                    self._log(item)
             except Exception as e:  # a display problem must never stop tracking; remember the first one
                 self._error = self._error or e
 
@@ -119,24 +157,35 @@ class Viewer:
 
     def _log_static(self) -> None:
         rec, c = self.rec, self.cfg
-        rec.send_blueprint(default_blueprint())
+        rec.send_blueprint(default_blueprint(self.show_augmented))
         rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)  # PTAM §6.1: +z from the plane to the camera
         f, pp, size = map_entities.level_intrinsics(self.camera, 0)
-        rec.log("world/camera/image", rr.Pinhole(focal_length=f, principal_point=pp, resolution=size,
-                                                 image_plane_distance=c.camera_frustum_depth), static=True)
+        rec.log(
+            "world/camera/image",
+            rr.Pinhole(
+                focal_length=f, principal_point=pp, resolution=size, image_plane_distance=c.camera_frustum_depth
+            ),
+            static=True,
+        )
         names = list(palette.STATE_COLOURS)
-        rec.log("state", rr.StateConfiguration(values=names, colors=[palette.STATE_COLOURS[n] for n in names]),
-                static=True)
+        rec.log(
+            "state", rr.StateConfiguration(values=names, colors=[palette.STATE_COLOURS[n] for n in names]), static=True
+        )
 
     def _emit(self, path: str, *archetypes) -> None:
         self.rec.log(path, *archetypes)
         time.sleep(0)  # hand the GIL to the tracker if it waits for it: the logger never holds it for long
 
+    def _set_time(self, index: int, timestamp: float) -> None:
+        self.rec.set_time("frame", sequence=int(index))
+        self.rec.set_time("time", duration=float(timestamp))
+
     def _log(self, item: _Item) -> None:
         o = item.outcome
         if o is not None:
-            self.rec.set_time("frame", sequence=int(o.index))
-            self.rec.set_time("time", duration=float(o.timestamp))
+            self._frame_time = (o.index, o.timestamp)
+        if self._frame_time is not None:  # also after an augmented frame was logged at its own time
+            self._set_time(*self._frame_time)
         if item.state != self._state:
             self._emit("state", rr.StateChange(state=item.state))
             self._state = item.state
@@ -146,6 +195,17 @@ class Viewer:
             self._log_map(item.snapshot)
         self._log_trajectory(item.trajectory, item.n_trajectory)
         self._log_plots(o, item)
+
+    def _log_augmented(self, a: _ArFrame) -> None:
+        """The augmented frame on the camera's timelines: JPEG like the camera image, or the exact BGR pixels."""
+        c = self.cfg
+        self._set_time(a.index, a.timestamp)
+        if c.ar_image_lossless:
+            self._emit(AUGMENTED_IMAGE, rr.Image(a.bgr, color_model="BGR"))
+            return
+        ok, jpeg = cv2.imencode(".jpg", a.bgr, [cv2.IMWRITE_JPEG_QUALITY, c.jpeg_quality])
+        if ok:
+            self._emit(AUGMENTED_IMAGE, rr.EncodedImage(contents=jpeg.tobytes(), media_type="image/jpeg"))
 
     def _log_frame(self, o, item: _Item) -> None:
         c = self.cfg
@@ -167,14 +227,23 @@ class Viewer:
                 Xc = se3.transform(o.result.T_cw, item.snapshot.X[missed])
                 failed_xy = self.camera.project(Xc[Xc[:, 2] > 0])
         off = map_entities.RERUN_PIXEL_OFFSET
-        self._emit("world/camera/image/found", rr.Points2D(found_xy + off, colors=palette.level_colours(found_level),
-                                                        radii=c.measurement_radius_px))
-        self._emit("world/camera/image/failed", rr.Points2D(failed_xy + off, colors=palette.FAILED_COLOUR,
-                                                         radii=c.failed_radius_px))
+        self._emit(
+            "world/camera/image/found",
+            rr.Points2D(found_xy + off, colors=palette.level_colours(found_level), radii=c.measurement_radius_px),
+        )
+        self._emit(
+            "world/camera/image/failed",
+            rr.Points2D(failed_xy + off, colors=palette.FAILED_COLOUR, radii=c.failed_radius_px),
+        )
         start, current = (np.zeros((0, 2)), np.zeros((0, 2))) if item.trails is None else item.trails
-        self._emit("world/camera/image/trails", rr.Arrows2D(origins=np.asarray(start, np.float64) + off,
-                                                         vectors=np.asarray(current - start, np.float64),
-                                                         colors=palette.TRAIL_COLOUR))
+        self._emit(
+            "world/camera/image/trails",
+            rr.Arrows2D(
+                origins=np.asarray(start, np.float64) + off,
+                vectors=np.asarray(current - start, np.float64),
+                colors=palette.TRAIL_COLOUR,
+            ),
+        )
 
     def _log_map(self, snap: MapSnapshot | None) -> None:
         c = self.cfg
@@ -189,8 +258,14 @@ class Viewer:
             self._emit("world/points", rr.Points3D(np.zeros((0, 3))))
             return
         good = snap.good_point_indices
-        self._emit("world/points", rr.Points3D(snap.X[good], colors=palette.level_colours(snap.source_level[good]),
-                                            radii=rr.Radius.ui_points(c.point_radius_ui)))
+        self._emit(
+            "world/points",
+            rr.Points3D(
+                snap.X[good],
+                colors=palette.level_colours(snap.source_level[good]),
+                radii=rr.Radius.ui_points(c.point_radius_ui),
+            ),
+        )
         n_old = len(self._kf_logged)
         T_wc = np.linalg.inv(snap.kf_T_cw)
         moved = np.ones(len(keyframes), bool)
@@ -201,10 +276,17 @@ class Viewer:
             path = f"world/keyframes/{i:04d}"
             self._emit(path, rr.Transform3D(translation=T_wc[i, :3, 3], mat3x3=T_wc[i, :3, :3]))
             if i >= n_old:
-                self._emit(f"{path}/image", rr.Pinhole(focal_length=f, principal_point=pp, resolution=size,
-                                                    image_plane_distance=c.frustum_depth,
-                                                    color=palette.KEYFRAME_COLOUR),
-                        rr.Image(keyframes[i].pyramid.levels[level]))
+                self._emit(
+                    f"{path}/image",
+                    rr.Pinhole(
+                        focal_length=f,
+                        principal_point=pp,
+                        resolution=size,
+                        image_plane_distance=c.frustum_depth,
+                        color=palette.KEYFRAME_COLOUR,
+                    ),
+                    rr.Image(keyframes[i].pyramid.levels[level]),
+                )
         self._kf_logged, self._kf_poses = keyframes, np.array(snap.kf_T_cw)
         if keyframes and not self._grid:
             lines, axis = map_entities.grid_lines(c.grid_spacing, c.grid_half_cells)
@@ -217,7 +299,7 @@ class Viewer:
             self._trajectory, self._traj_xyz = trajectory, np.zeros((0, 3))
         elif n == len(self._traj_xyz):
             return
-        new = [T[:3, 3] for _, T in trajectory[len(self._traj_xyz):n]]
+        new = [T[:3, 3] for _, T in trajectory[len(self._traj_xyz) : n]]
         if new:
             self._traj_xyz = np.concatenate([self._traj_xyz, np.array(new)])
         self._emit("world/trajectory", rr.LineStrips3D([self._traj_xyz], colors=palette.TRAJECTORY_COLOUR))
