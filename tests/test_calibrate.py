@@ -217,7 +217,7 @@ def test_bad_input_exits_2(tmp_path, capsys):
     code, _, err = run(capsys, "calibrate", "--video", tmp_path / "broken.avi", "--board", "nine")
     assert_one_line_error(code, err, "--board must be COLSxROWS")
     code, _, err = run(capsys, "calibrate")
-    assert_one_line_error(code, err, "give --video FILE, --camera v4l2[:DEVICE] or --images DIR")
+    assert_one_line_error(code, err, "give --video FILE, --camera v4l2[:DEVICE] | dc1394[:N|GUID] or --images DIR")
     code, _, err = run(capsys, "calibrate", "--images", tmp_path / "nowhere")
     assert_one_line_error(code, err, "not found")
 
