@@ -33,3 +33,15 @@ def cfg():
     from tests.support import config
 
     return config()
+
+
+@pytest.fixture
+def tiny(tmp_path, monkeypatch):
+    """The six-frame 80x60 scene file, with ``PTAM_CACHE_DIR`` unset so a test's own cache setting decides."""
+    from ptam.synthetic.sequence import CACHE_ENV as cache_env
+    from tests.support import TINY
+
+    monkeypatch.delenv(cache_env, raising=False)
+    path = tmp_path / "tiny.yaml"
+    path.write_text(TINY)
+    return path

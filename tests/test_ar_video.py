@@ -1,6 +1,5 @@
 """Acceptance: the AR video of a two-wall run has one augmented frame per tracked frame and opens with OpenCV."""
 
-import cv2
 import numpy as np
 import pytest
 
@@ -10,22 +9,9 @@ from ptam.capture import open_dataset
 from ptam.config import load_config
 from ptam.errors import InputError
 from ptam.system import System
-from tests.support import capture, sequence
+from tests.support import capture, read_video, sequence
 
 pytestmark = pytest.mark.slow  # replays a whole synthetic sequence
-
-
-def _read_all(path):
-    cap = cv2.VideoCapture(str(path))
-    assert cap.isOpened()
-    frames = []
-    while True:
-        ok, img = cap.read()
-        if not ok:
-            break
-        frames.append(img)
-    cap.release()
-    return frames
 
 
 def test_sync_run_writes_one_augmented_frame_per_tracked_frame(tmp_path):
@@ -41,7 +27,7 @@ def test_sync_run_writes_one_augmented_frame_per_tracked_frame(tmp_path):
             images[frame.index] = frame.image
             system.process(frame)
         layer.close()
-    frames = _read_all(video)
+    frames = read_video(video)
     poses = len(system.trajectory)
     print(
         f"{poses} tracked frames ({len(tracked)} reported live, the others tracked once the stereo map existed), "
@@ -68,7 +54,7 @@ def test_layer_is_drop_free_when_writing_a_video(tmp_path, suffix):
     with ArLayer(camera, cfg, "eyes", path, fps=30.0) as layer:
         for i in range(12):  # far faster than the worker renders and encodes
             layer.submit(np.full((240, 320), 8 * i, np.uint8), T_cw, i, i / 30.0)
-    frames = _read_all(path)
+    frames = read_video(path)
     assert len(frames) == 12 and layer.dropped == 0
     assert frames[0].shape == (240, 320, 3)
 

@@ -9,15 +9,6 @@ import ptam.synthetic.sequence as sequence
 from ptam import system
 from ptam.cli import main as cli_main
 from ptam.commands.bench import BENCHMARKS
-from tests.support import TINY
-
-
-@pytest.fixture
-def tiny(tmp_path, monkeypatch):
-    monkeypatch.delenv(sequence.CACHE_ENV, raising=False)
-    path = tmp_path / "tiny.yaml"
-    path.write_text(TINY)
-    return path
 
 
 def test_render_threads_and_cache_dir_reach_the_renderer(tiny, tmp_path, monkeypatch):

@@ -15,14 +15,6 @@ from ptam.synthetic.scene import Scene
 from tests.support import TINY, config
 
 
-@pytest.fixture
-def tiny(tmp_path, monkeypatch):
-    monkeypatch.delenv(sequence.CACHE_ENV, raising=False)
-    path = tmp_path / "tiny.yaml"
-    path.write_text(TINY)
-    return path
-
-
 def _synth(cache_dir):
     return dataclasses.replace(config().synthetic, cache_dir=str(cache_dir))
 

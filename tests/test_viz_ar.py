@@ -26,7 +26,7 @@ from ptam.commands.run_progress import Display
 from ptam.config import load_config
 from ptam.system import System
 from ptam.viz.blueprint import AUGMENTED_IMAGE, CAMERA_IMAGE
-from tests.support import sequence
+from tests.support import read_video, sequence
 
 FRAMES = 90  # stereo initialisation completes at frame 39; every frame from the first keyframe on is tracked
 
@@ -39,18 +39,6 @@ def _short_sequence(directory):
     (directory / "rgb.txt").write_text("\n".join(lines) + "\n")
     (directory / "rgb").symlink_to(src / "rgb")
     return {round(float(x.split()[0]), 6): i for i, x in enumerate(lines)}, [x.split()[1] for x in lines]
-
-
-def _read_video(path):
-    cap = cv2.VideoCapture(str(path))
-    frames = []
-    while True:
-        ok, img = cap.read()
-        if not ok:
-            break
-        frames.append(img)
-    cap.release()
-    return frames
 
 
 def _entity_rows(path, entity, component):
@@ -88,7 +76,7 @@ def ar_run(tmp_path_factory):
     grey = {i: cv2.imread(str(data / names[i]), cv2.IMREAD_GRAYSCALE) for i in tracked}
     return dict(
         tracked=tracked,
-        video=_read_video(video),
+        video=read_video(video),
         augmented=_entity_rows(rrd, AUGMENTED_IMAGE, "Image:buffer"),
         camera=_entity_rows(rrd, CAMERA_IMAGE, "EncodedImage:blob"),
         grey=grey,

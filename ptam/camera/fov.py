@@ -64,17 +64,8 @@ class FovCamera(CameraModel):
     def distortion_params(self):
         return [self.omega]
 
-    def to_dict(self):
-        return {
-            "model": self.model,
-            "width": self.width,
-            "height": self.height,
-            "fx": self.fx,
-            "fy": self.fy,
-            "cx": self.cx,
-            "cy": self.cy,
-            "omega": self.omega,
-        }
+    def distortion_dict(self) -> dict:
+        return {"omega": self.omega}
 
     def ptam_vector(self) -> list[float]:
         """PTAM's normalised parameters [fx/W, fy/H, (cx+0.5)/W, (cy+0.5)/H, ω] for its own code."""

@@ -49,8 +49,20 @@ class CameraModel(ABC):
         """Up to five distortion parameters in the kernel layout."""
 
     @abstractmethod
+    def distortion_dict(self) -> dict:
+        """The model's distortion parameters by their camera.yaml names."""
+
     def to_dict(self) -> dict:
         """The camera.yaml representation."""
+        linear = {
+            "width": self.width,
+            "height": self.height,
+            "fx": self.fx,
+            "fy": self.fy,
+            "cx": self.cx,
+            "cy": self.cy,
+        }
+        return {"model": str(self.model), **linear, **self.distortion_dict()}
 
     # -- shared machinery --------------------------------------------------------------------------
     @property

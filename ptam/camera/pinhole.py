@@ -23,13 +23,5 @@ class PinholeCamera(CameraModel):
     def distortion_params(self):
         return []
 
-    def to_dict(self):
-        return {
-            "model": self.model,
-            "width": self.width,
-            "height": self.height,
-            "fx": self.fx,
-            "fy": self.fy,
-            "cx": self.cx,
-            "cy": self.cy,
-        }
+    def distortion_dict(self) -> dict:
+        return {}

@@ -57,18 +57,5 @@ class RadTanCamera(CameraModel):
     def distortion_params(self):
         return [self.k1, self.k2, self.p1, self.p2, self.k3]
 
-    def to_dict(self):
-        return {
-            "model": self.model,
-            "width": self.width,
-            "height": self.height,
-            "fx": self.fx,
-            "fy": self.fy,
-            "cx": self.cx,
-            "cy": self.cy,
-            "k1": self.k1,
-            "k2": self.k2,
-            "p1": self.p1,
-            "p2": self.p2,
-            "k3": self.k3,
-        }
+    def distortion_dict(self) -> dict:
+        return {"k1": self.k1, "k2": self.k2, "p1": self.p1, "p2": self.p2, "k3": self.k3}

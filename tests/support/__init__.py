@@ -40,3 +40,19 @@ def sequence(name: str, video: bool = False) -> Path:
     """A bundled synthetic sequence, rendered into the session's cache (``conftest.py`` points it at a temporary
     directory)."""
     return ensure_sequence(name, config().synthetic, video=video)
+
+
+def read_video(path) -> list:
+    """Every frame of a video file, as OpenCV decodes it (BGR)."""
+    import cv2
+
+    cap = cv2.VideoCapture(str(path))
+    assert cap.isOpened(), path
+    frames = []
+    while True:
+        ok, img = cap.read()
+        if not ok:
+            break
+        frames.append(img)
+    cap.release()
+    return frames
