@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 import ptam.synthetic.sequence as sequence
-from ptam import system
+from ptam.system import core as system
 from ptam.cli import main as cli_main
 from ptam.commands.bench import BENCHMARKS
 

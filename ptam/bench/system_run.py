@@ -54,8 +54,8 @@ def run_mapping_benchmark(cfg, scene: str = "two_wall", out=print) -> dict:
             for (m, k), p in zip(means, PTAM_TABLE2_MS[kind])
         )
         out(f"{kind + ' BA, here / PTAM':<28}{cells}")
-    t_sync = float(np.median(sync.stats.track_ms))
-    t_async = float(np.median(asyn.stats.track_ms))
+    t_sync = sync.stats.track_ms.median()
+    t_async = asyn.stats.track_ms.median()
     out("")
     out(
         f"ATE after Sim(3): sync {ate_mm:.2f} mm ({100 * fraction:.1f}% tracked), async {ate_async:.2f} mm "

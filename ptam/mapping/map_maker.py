@@ -65,10 +65,11 @@ class MapMaker:
         self._plane_corners: dict[tuple[int, int], np.ndarray] = {}
         self._never_retry: dict[int, np.ndarray] = {}  # keyframe -> bool per point: do not search again
         self._failure_queue: list[tuple[int, int]] = []
-        self._new_points: list[np.ndarray] = []
+        self._new_points: list[tuple[np.ndarray, int]] = []  # (new point ids, next keyframe to search)
         # Tracker feedback (PTAM code: MapPoint::nMEstimatorInlier/OutlierCount, counted in the tracker's final
         # pose update): the tracker's thread appends (inlier ids, outlier ids) per frame, the mapper drains them.
-        self.tracker_feedback: deque[tuple[np.ndarray, np.ndarray]] = deque()
+        # Bounded: in sync mode the mapper only drains it at keyframes (PTAM uses the recent evidence anyway).
+        self.tracker_feedback: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=cfg.mapper.tracker_feedback_frames)
         self._inlier_count = np.zeros(0, np.int64)
         self._outlier_count = np.zeros(0, np.int64)
         self.recent_converged = True
@@ -79,6 +80,7 @@ class MapMaker:
         # ba_running: "local" or "global" while a bundle adjustment runs, else None (read by the viewer).
         self.stats: dict[str, Any] = {"local_ba": [], "global_ba": [], "keyframes_added": 0, "ba_running": None}
         self.ready = False  # set once a usable map exists; the mapper thread idles until then
+        self.reset_requested = False  # the map is corrupt; the system starts again (PTAM code)
         if len(self.map.keyframes):
             self.ready = True
             self.wiggle_depth_normalised = cfg.init.baseline_m / self.map.keyframes[0].scene_depth_mean
@@ -238,7 +240,7 @@ class MapMaker:
         ids = m.add_points(res.X, normal, k, level, res.src_level_xy)
         m.add_measurements(k, ids, res.src_xy, level, SRC_ROOT)
         m.add_measurements(t, ids, res.tgt_xy, level, SRC_EPIPOLAR)
-        self._new_points.append(ids)
+        self._new_points.append((ids, 0))
         return n
 
     # -- data-association refinement (PTAM §6.4) --------------------------------------------------------
@@ -281,10 +283,13 @@ class MapMaker:
         return int(r.found.sum())
 
     def _refind_newly_made(self) -> None:
-        pts = self._new_points.pop(0)
+        """PTAM code ``ReFindNewlyMade``: a queued keyframe interrupts the search, and the points not yet
+        searched everywhere stay queued for later."""
+        pts, start = self._new_points.pop(0)
         pts = pts[~self.map.bad[pts]]
-        for k in range(self.map.n_keyframes):
+        for k in range(start, self.map.n_keyframes):
             if self._abort():
+                self._new_points.insert(0, (pts, k))
                 return
             self._refind_in_keyframe(k, pts)
 
@@ -336,8 +341,11 @@ class MapMaker:
             (n, 1e3 * res.phase_seconds.get("total", 0.0), bool(res.converged))
         )
         if res.failed:
+            # PTAM code (MapMaker::BundleAdjust): "Cholesky failure in bundle adjust. The map is probably
+            # corrupt: Ditching the map." The system resets.
             log.warning("bundle adjustment could not factorise the reduced system; the map is probably corrupt")
             self.recent_converged = self.full_converged = True
+            self.reset_requested = True
             return
         if res.accepted > 0:
             m.set_poses(np.arange(n), res.poses)

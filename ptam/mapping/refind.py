@@ -62,6 +62,7 @@ def refind_points(
             uv[idx],
             float(cfg.mapper.refind_radius_px),
             lv > 0,
+            require_converged=False,
         )
         found[idx] = m.found
         xy[idx] = m.xy

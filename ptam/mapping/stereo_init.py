@@ -8,6 +8,8 @@ whole map adjusted to convergence, and finally the dominant plane moved to z = 0
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..map.keyframe import KeyFrame
@@ -17,8 +19,18 @@ from .map_maker import NEW_POINT_LEVEL_ORDER, MapMaker
 from .two_view import InitFailure, estimate_two_view
 
 
-def init_from_stereo(mm: MapMaker, first, second, xy0: np.ndarray, xy1: np.ndarray) -> np.ndarray:
-    """``first``/``second``: (pyramid, timestamp). Returns the second keyframe's pose T_cw in the new map.
+@dataclass(frozen=True)
+class StereoMap:
+    """What initialisation built beyond the map: the second keyframe's pose, and for each point made from a
+    trail, the trail's row in ``xy0``/``xy1`` (so frames that followed the trails can be posed on the map)."""
+
+    T_second: np.ndarray
+    trail_rows: np.ndarray
+    point_ids: np.ndarray
+
+
+def init_from_stereo(mm: MapMaker, first, second, xy0: np.ndarray, xy1: np.ndarray) -> StereoMap:
+    """``first``/``second``: (pyramid, timestamp). Builds the map in ``mm``.
 
     Raises :class:`InitFailure` with the reason; the mapper's map is left empty then.
     """
@@ -30,6 +42,7 @@ def init_from_stereo(mm: MapMaker, first, second, xy0: np.ndarray, xy1: np.ndarr
     T1[:3, 3] *= c.baseline_m / np.linalg.norm(T1[:3, 3])
     X = tv.X0 * (c.baseline_m / np.linalg.norm(tv.T_c1c0[:3, 3]))
     a, b = xy0[tv.inliers], xy1[tv.inliers]
+    rows = np.arange(len(xy0))[tv.inliers]
     n = len(X)
     poses = np.stack([np.eye(4), T1])
     meas_kf = np.repeat([0, 1], n)
@@ -44,7 +57,7 @@ def init_from_stereo(mm: MapMaker, first, second, xy0: np.ndarray, xy1: np.ndarr
     keep = ~bad
     if keep.sum() < c.min_inliers:
         raise InitFailure(f"too few points survive bundle adjustment ({int(keep.sum())} < {c.min_inliers})")
-    poses, X, a, b = res.poses, res.points[keep], a[keep], b[keep]
+    poses, X, a, b, rows = res.poses, res.points[keep], a[keep], b[keep], rows[keep]
 
     depths = [(X @ T[2, :3] + T[2, 3]) for T in poses]
     m = mm.map
@@ -73,4 +86,4 @@ def init_from_stereo(mm: MapMaker, first, second, xy0: np.ndarray, xy1: np.ndarr
     mm.recent_converged = True
     mm.publish()
     mm.ready = True
-    return m.kf_T_cw[1].copy()
+    return StereoMap(m.kf_T_cw[1].copy(), rows, ids)

@@ -44,10 +44,23 @@ class PatchFinder:
         self.max_ssd = float(patch_cfg.max_ssd_per_pixel) * patch_cfg.size * patch_cfg.size
 
     def find(
-        self, pyramid, kf_images, source_kf, source_level, source_xy, M, level, predicted_xy, radius_px, subpix
+        self,
+        pyramid,
+        kf_images,
+        source_kf,
+        source_level,
+        source_xy,
+        M,
+        level,
+        predicted_xy,
+        radius_px,
+        subpix,
+        require_converged: bool = True,
     ) -> PatchMatches:
         """Search patches (source keyframe/level/pixel, template matrix M (n, 2, 2), search ``level`` (n,))
-        around level-0 predictions (n, 2) within ``radius_px`` level-0 pixels; refine where ``subpix`` (n,)."""
+        around level-0 predictions (n, 2) within ``radius_px`` level-0 pixels; refine where ``subpix`` (n,).
+        ``require_converged``: a refinement that does not converge loses the match (PTAM code's tracker); else
+        the last iterate is kept (PTAM code's ``ReFind_Common``)."""
         n = len(level)
         cfg = self.cfg
         found = np.zeros(n, dtype=bool)
@@ -82,7 +95,8 @@ class PatchFinder:
                 float(cfg.subpix_converge_px),
             )
             pos[refine] = pos_r
-            hit[refine] = converged
+            if require_converged:
+                hit[refine] = converged
             did_subpix[ok[refine]] = converged
         found[ok] = hit
         xy[ok] = (pos + 0.5) * scale[:, None] - 0.5

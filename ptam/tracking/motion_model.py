@@ -12,6 +12,8 @@ velocity along the optical axis (``keep_axial``), which the small-image alignmen
 
 from __future__ import annotations
 
+from collections import deque
+
 import numpy as np
 
 from ..geometry import se3
@@ -30,9 +32,13 @@ class MotionModel:
         self.scaled_speed = 0.0
         self.prior = np.zeros(6)
 
-    def predict(self, T_cw: np.ndarray, rotation: np.ndarray | None = None, keep_axial: bool = False) -> np.ndarray:
-        """exp(v)·T_cw; with an estimated ``rotation`` (3,), v = (0, 0, v_z if ``keep_axial`` else 0, rotation)."""
-        v = self.velocity.copy()
+    def predict(
+        self, T_cw: np.ndarray, rotation: np.ndarray | None = None, keep_axial: bool = False, frames: float = 1.0
+    ) -> np.ndarray:
+        """exp(k·v)·T_cw for a frame ``frames`` = k periods after the last (PTAM assumes k = 1: a camera that
+        drops frames moves k frames' worth); with an estimated ``rotation`` (3,), measured over the whole gap,
+        v = (0, 0, v_z if ``keep_axial`` else 0, rotation)."""
+        v = self.velocity * frames
         if rotation is not None:
             v[:2] = 0.0
             if not keep_axial:
@@ -41,9 +47,31 @@ class MotionModel:
         self.prior = v
         return se3.exp(v) @ T_cw
 
-    def update(self, T_start: np.ndarray, T_new: np.ndarray, mean_scene_depth: float) -> None:
-        delta = se3.log(T_new @ se3.inv(T_start))
+    def update(self, T_start: np.ndarray, T_new: np.ndarray, mean_scene_depth: float, frames: float = 1.0) -> None:
+        delta = se3.log(T_new @ se3.inv(T_start)) / frames  # per frame period
         self.velocity = self.decay * (self.blend * delta + (1.0 - self.blend) * self.velocity)
         v = self.velocity.copy()
         v[:3] /= mean_scene_depth
         self.scaled_speed = float(np.linalg.norm(v))
+
+
+class FrameGaps:
+    """How many frame periods passed since the previous frame, from the timestamps; the period is the median of
+    the last ``window`` gaps, so a few late frames do not change it. Without timestamps (or before the first
+    gap) a frame is one period."""
+
+    def __init__(self, window: int):
+        self._gaps: deque[float] = deque(maxlen=window)
+        self._last: float | None = None
+
+    def reset(self) -> None:
+        self._last = None
+
+    def frames(self, timestamp: float) -> float:
+        last, self._last = self._last, timestamp
+        if last is None or not timestamp > last:
+            return 1.0
+        dt = timestamp - last
+        period = float(np.median(self._gaps)) if self._gaps else dt
+        self._gaps.append(dt)
+        return dt / period

@@ -34,12 +34,13 @@ class TrackingQuality:
         attempted_per_level: np.ndarray,
         found_per_level: np.ndarray,
         suspend: bool = False,
-        force_bad: bool = False,
+        too_far: bool = False,
     ) -> str:
-        """``force_bad``: the frame is bad whatever its counts (PTAM code: too far from every keyframe)."""
+        """``too_far``: the pose is far from every keyframe, which turns a poor frame bad (PTAM code: only a
+        dodgy frame is checked with ``IsDistanceToNearestKeyFrameExcessive``; a good one stays good)."""
         cfg = self.cfg
         attempted, found = int(attempted_per_level.sum()), int(found_per_level.sum())
-        if attempted == 0 or found == 0 or force_bad:
+        if attempted == 0 or found == 0:
             quality = BAD
         else:
             fraction = found / attempted
@@ -50,6 +51,8 @@ class TrackingQuality:
                 else fraction
             )
             quality = GOOD if fraction > cfg.quality_good else BAD if large < cfg.quality_lost else POOR
+            if quality == POOR and too_far:
+                quality = BAD
         if quality != BAD:
             self.bad_frames = 0
         elif not suspend:

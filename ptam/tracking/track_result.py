@@ -78,6 +78,7 @@ class TrackResult:
     timings: StageTimings
     keyframe: KeyframeCandidate
     rapid_motion: bool = False  # failure detection was suspended this frame (Agility §8)
+    in_doubt: bool = False  # tracked from an approximate prior (a recovery or missed frames): no keyframe from it
 
     @property
     def T_wc(self) -> np.ndarray:

@@ -19,6 +19,7 @@ work is vectorised or in numba kernels; the Python code here handles whole array
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,7 +32,7 @@ from ..image.pyramid import Pyramid
 from ..map.snapshot import MapSnapshot
 from ..patch.finder import PatchFinder
 from ..patch.warp import patch_pixel_vectors, search_warps, template_matrices
-from .motion_model import MotionModel
+from .motion_model import FrameGaps, MotionModel
 from .pose_update import update_pose
 from .projection import project_points
 from .quality import GOOD, TrackingQuality
@@ -47,6 +48,7 @@ class Tracker:
         self.n_levels = cfg.image.levels
         self._cam = camera.kernel_params()
         self.motion = MotionModel(cfg.tracker)
+        self.gaps = FrameGaps(cfg.tracker.motion_period_window)
         self.rotation = RotationEstimator(camera, cfg.rotation)
         self.quality = TrackingQuality(cfg.tracker)
         self.finder = PatchFinder(cfg.patch)
@@ -59,6 +61,7 @@ class Tracker:
         """Forget pose, velocity, quality history and the keyframe counter."""
         self.T_cw = np.eye(4)
         self.motion.reset()
+        self.gaps.reset()
         self.rotation.reset()
         self.quality.reset()
         self.frames_since_keyframe = 0
@@ -97,8 +100,11 @@ class Tracker:
         clock.lap(PREPARE)
 
         T_start = self.T_cw
-        T = self.motion.predict(T_start, rotation, self.cfg.rotation.keep_axial_velocity)
-        force, self._force_coarse = self._force_coarse, False
+        gap = self.gaps.frames(timestamp)
+        late = gap > self.tcfg.motion_gap_frames  # frames were missed: the prior is less certain
+        frames = min(gap, self.tcfg.motion_max_gap_frames)
+        T = self.motion.predict(T_start, rotation, self.cfg.rotation.keep_axial_velocity, frames)
+        force, self._force_coarse = self._force_coarse or late, False
         batch = Batch()
         did_coarse = False
         n_visible = 0
@@ -110,7 +116,8 @@ class Tracker:
             clock.lap(PROJECT)
             T, did_coarse = self._coarse_stage(pyramid, snapshot, cand, T, force, batch, clock)
             T = self._fine_stage(pyramid, snapshot, cand, T, did_coarse, batch, clock)
-        return self._finish(index, timestamp, pyramid, snapshot, T_start, T, batch, did_coarse, n_visible, clock)
+        res = self._finish(index, timestamp, pyramid, snapshot, T_start, T, batch, did_coarse, n_visible, clock, frames)
+        return dataclasses.replace(res, in_doubt=force) if force else res
 
     def _coarse_stage(self, pyramid, snapshot, cand, T, force: bool, batch, clock) -> tuple[np.ndarray, bool]:
         """PTAM §5.5; code: only with more than coarse_min_points candidates at the two coarsest levels, and a
@@ -204,7 +211,7 @@ class Tracker:
             subpix,
         )
 
-    def _finish(self, index, timestamp, pyramid, snapshot, T_start, T, batch, did_coarse, n_visible, clock):
+    def _finish(self, index, timestamp, pyramid, snapshot, T_start, T, batch, did_coarse, n_visible, clock, frames):
         meas = Measurements(
             batch.ids(), batch.xy(), batch.level(), batch.found(), batch.subpix(), batch.weights > 0, batch.coarse()
         )
@@ -213,7 +220,7 @@ class Tracker:
         found_l = np.bincount(meas.level[meas.found], minlength=self.n_levels)
         depth_mean, depth_sigma = self._update_scene_depth(snapshot, T, meas)
         if depth_mean is not None:
-            self.motion.update(T_start, T, depth_mean)
+            self.motion.update(T_start, T, depth_mean, frames)
         reloc = self.cfg.reloc
         prior_deg = np.degrees(np.linalg.norm(self.motion.prior[3:]))
         rapid = reloc.suspend_when_rapid and prior_deg > reloc.rapid_rotation_deg
@@ -221,7 +228,7 @@ class Tracker:
         # PTAM code (IsDistanceToNearestKeyFrameExcessive): a pose far beyond every keyframe, in units of the
         # initial stereo baseline, is not trusted however many patches matched.
         too_far = dist > self.tcfg.max_keyframe_distance_baselines * self.cfg.init.baseline_m
-        quality = self.quality.assess(att_l, found_l, suspend=rapid, force_bad=too_far and np.isfinite(dist))
+        quality = self.quality.assess(att_l, found_l, suspend=rapid, too_far=too_far and np.isfinite(dist))
         self.T_cw = T
         self.frames_since_keyframe += 1
         depth = float("nan") if depth_mean is None else depth_mean

@@ -24,6 +24,7 @@ class TrailTracker:
         self.previous: Pyramid | None = None
         self.start_xy = np.zeros((0, 2), np.int32)
         self.current_xy = np.zeros((0, 2), np.int32)
+        self.ids = np.zeros(0, np.int64)  # each live trail's index among those started, to follow it across frames
         self.frames = 0
 
     @property
@@ -40,6 +41,7 @@ class TrailTracker:
         order = np.argsort(-score, kind="stable")[: self.cfg.max_trails]
         self.start_xy = np.ascontiguousarray(xy[order], dtype=np.int32)
         self.current_xy = self.start_xy.copy()
+        self.ids = np.arange(self.n_trails)
         self.first = self.previous = pyramid
         self.frames = 0
         return self.n_trails
@@ -75,6 +77,7 @@ class TrailTracker:
         keep = ok & ok_b & (d2 <= c.trail_backward_tolerance_px2)
         self.start_xy = self.start_xy[keep]
         self.current_xy = fwd[keep]
+        self.ids = self.ids[keep]
         self.previous = pyramid
         self.frames += 1
         return self.n_trails

@@ -20,28 +20,30 @@ relocalising (PTAM code: only the normal tracking branch adds keyframes).
 
 from __future__ import annotations
 
+import bisect
 import logging
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from .camera import load_camera
-from .camera.model import CameraModel
-from .capture import open_dataset
-from .config import Config
-from .geometry import se3
-from .image.pyramid import Pyramid
-from .map.map import Map
-from .mapping.map_maker import KeyframeRequest, MapMaker
-from .mapping.stereo_init import init_from_stereo
-from .mapping.two_view import InitFailure
-from .tracking.relocaliser import Relocaliser
-from .tracking.tracker import Tracker
-from .tracking.trails import TrailTracker
-from .vocabulary import InitMode, Quality, RunMode, TrackingState
+from ..camera import load_camera
+from ..camera.model import CameraModel
+from ..capture import open_dataset
+from ..config import Config
+from ..geometry import se3
+from ..image.pyramid import Pyramid
+from ..map.map import Map
+from ..mapping.map_maker import KeyframeRequest, MapMaker
+from ..tracking.relocaliser import Relocaliser
+from ..tracking.tracker import Tracker
+from ..tracking.trails import TrailTracker
+from ..vocabulary import InitMode, Quality, RunMode, TrackingState
+from .run_stats import RunStats
+from .stereo_start import StereoStart
+from .warm_up import warm_up
 
 log = logging.getLogger("ptam")
 
@@ -60,19 +62,6 @@ class FrameOutcome:
     keyframe_added: bool = False
     process_ms: float = 0.0
     frame: object = None  # the capture Frame, for observers that show the image
-
-
-@dataclass
-class RunStats:
-    frames: int = 0
-    tracked: int = 0
-    lost_events: int = 0
-    relocalisations: int = 0  # lost -> tracking through a relocalisation (Agility §7)
-    reloc_attempts: int = 0
-    keyframes_requested: int = 0
-    init_attempts: int = 0
-    init_failures: list = field(default_factory=list)
-    track_ms: list = field(default_factory=list)
 
 
 def _tracked_state(res) -> TrackingState:
@@ -107,24 +96,29 @@ class System:
         self.tracker = Tracker(camera, cfg)
         self.relocaliser = Relocaliser(camera, cfg)
         self.mapper = MapMaker(camera, cfg, map_)
-        self.trails = TrailTracker(cfg.init, cfg.image)
+        self._init = StereoStart(camera, cfg, background=self.mode != RunMode.SYNC)
         self.state = INITIALISING
         self.observers: list = []
         if self.mapper.initialised:
             self.state = TrackingState.GOOD
             self.tracker.set_pose(self.mapper.map.kf_T_cw[0], recovered=True)
         self.trajectory: list[tuple[float, np.ndarray]] = []  # (timestamp, T_wc) per tracked frame
-        self.stats = RunStats()
-        self._first: tuple[Pyramid, float, int] | None = None  # the first stereo keyframe: pyramid, time, index
-        self._init_frames: list = []  # frames seen since the first keyframe, tracked once a map exists
+        self.stats = RunStats(cfg.system.latency_window_frames)
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
         self._wake = threading.Event()
         self._mapper_error: BaseException | None = None
         self.last_failure: str | None = None
+        self._warm = False
+        self._confirming: list[tuple[float, np.ndarray]] | None = None  # poses tracked since a relocalisation
 
     # -- threads -------------------------------------------------------------------------------------------
     def start(self) -> System:
+        """Start the mapper thread (not in ``sync``); outside ``sync`` mode, load the per-frame kernels first so
+        the first frames are not dropped while they load."""
+        if self.mode != RunMode.SYNC and not self._warm:
+            warm_up(self.camera, self.cfg)
+            self._warm = True
         if self.mode != RunMode.SYNC and not self.localize_only and self._thread is None:
             self._thread = threading.Thread(target=self._mapper_loop, name="ptam-mapper", daemon=True)
             self._thread.start()
@@ -145,6 +139,11 @@ class System:
             raise err
 
     def close(self) -> None:
+        if self._init.building:  # the source ended while the map was being built: adopt it and its frames
+            last = self._init.history[-1]
+            self._built(self._init.wait(), last.index, last.timestamp)
+        self._collect_posed(wait=True)
+        self._init.close()
         self._stop.set()
         self._wake.set()
         if self._thread is not None:
@@ -168,7 +167,11 @@ class System:
     @property
     def init_started(self) -> bool:
         """Stereo initialisation has its first keyframe and is following trails."""
-        return self._first is not None and not self.mapper.initialised
+        return self._init.started and not self.mapper.initialised
+
+    @property
+    def trails(self) -> TrailTracker:
+        return self._init.trails
 
     def reset(self) -> None:
         """PTAM's reset: discard the map, the trajectory and the tracker's state, then initialise again."""
@@ -177,10 +180,10 @@ class System:
         self._stop.clear()
         self.mapper = MapMaker(self.camera, self.cfg)
         self.tracker.reset()
-        self.trails = TrailTracker(self.cfg.init, self.cfg.image)
+        self._init = StereoStart(self.camera, self.cfg, background=self.mode != RunMode.SYNC)
         self.state = INITIALISING
         self.trajectory = []
-        self._first, self._init_frames, self._key_pressed = None, [], False
+        self._key_pressed = False
         if restart:
             self.start()
 
@@ -190,6 +193,11 @@ class System:
         t0 = time.perf_counter()
         self.stats.frames += 1
         out = self._track(frame) if self.mapper.initialised else self._initialise(frame)
+        if self._init.posing:
+            self._collect_posed()
+        if self.mapper.reset_requested:  # PTAM code: a bundle adjustment that cannot be solved ditches the map
+            log.warning("the map is corrupt (bundle adjustment failed): starting again")
+            self.reset()
         out.process_ms = 1e3 * (time.perf_counter() - t0)
         out.frame = frame
         for observe in self.observers:
@@ -198,46 +206,67 @@ class System:
 
     def _track(self, frame, record: bool = True) -> FrameOutcome:
         snapshot = self.mapper.snapshot
-        recovering = self.state in (LOST, RELOCALISING) and self.cfg.reloc.enabled
+        index, ts = int(frame.index), float(frame.timestamp)
+        relocalising = self.state in (LOST, RELOCALISING) and self.cfg.reloc.enabled
         if self.cfg.reloc.enabled:
             self.relocaliser.sync(snapshot)  # keyframe descriptors as keyframes appear, not all at the first loss
         pyramid = None
-        if recovering:
+        if relocalising and self._confirming is None:
             pyramid = Pyramid.build(frame.image, self.cfg.image)
             reloc = self.relocaliser.attempt(pyramid, snapshot)
             self.stats.reloc_attempts += 1
             if reloc is None or not reloc.accepted:
                 self.state = RELOCALISING
-                return FrameOutcome(int(frame.index), float(frame.timestamp), RELOCALISING, None)
+                return FrameOutcome(index, ts, RELOCALISING, None)
             self.tracker.set_pose(reloc.T_cw, recovered=True)
+            self._confirming = []
         res = self.tracker.track(frame, snapshot, pyramid)
         self.stats.track_ms.append(res.timings.total)
-        if recovering:
-            self.state = RELOCALISING if res.lost else _tracked_state(res)
-            if not res.lost:
-                self.stats.relocalisations += 1
-        else:
-            if res.lost and self.state != LOST:
-                self.stats.lost_events += 1
-            self.state = LOST if res.lost else _tracked_state(res)
-        if not recovering and not self.localize_only:
+        if relocalising:
+            return self._confirm(res)
+        if res.lost and self.state != LOST:
+            self.stats.lost_events += 1
+        self.state = LOST if res.lost else _tracked_state(res)
+        if not self.localize_only:
             m = res.measurements
             self.mapper.report_tracking(m.point_ids[m.found & m.inlier], m.point_ids[m.found & ~m.inlier])
         T = res.T_cw if res.tracked else None
         if T is not None and record:
             self.trajectory.append((res.timestamp, se3.inv(T)))
             self.stats.tracked += 1
-        added = record and not recovering and self._maybe_add_keyframe(res)
+        added = record and self._maybe_add_keyframe(res)
         return FrameOutcome(res.frame_index, res.timestamp, self.state, T, res, added)
+
+    def _confirm(self, res) -> FrameOutcome:
+        """A relocalisation (Agility §7) counts only once the tracker confirms it: ``reloc.confirm_frames``
+        frames in a row tracked with good quality from the relocalised pose. Until then the frames are not
+        reported tracked (a wrong pose is worse than a lost frame); then they all are. A frame that is not good
+        sends the system back to relocalising."""
+        assert self._confirming is not None
+        if res.quality != Quality.GOOD:
+            self._confirming = None
+            self.state = RELOCALISING
+            return FrameOutcome(res.frame_index, res.timestamp, RELOCALISING, None, res)
+        self._confirming.append((res.timestamp, se3.inv(res.T_cw)))
+        if len(self._confirming) < self.cfg.reloc.confirm_frames:
+            return FrameOutcome(res.frame_index, res.timestamp, RELOCALISING, None, res)
+        self.trajectory.extend(self._confirming)
+        self.stats.tracked += len(self._confirming)
+        self.stats.relocalisations += 1
+        self._confirming = None
+        self.state = TrackingState.GOOD
+        return FrameOutcome(res.frame_index, res.timestamp, self.state, res.T_cw, res)
 
     def _maybe_add_keyframe(self, res) -> bool:
         """PTAM §6.2 (code ``Tracker::NeedNewKeyFrame`` + ``MapMaker::NeedNewKeyFrame``); frames of rapid motion
-        are tracked but not used for map-building (Agility §10)."""
+        are tracked but not used for map-building (Agility §10), nor are frames tracked from an approximate prior
+        (after a recovery or missed frames)."""
         m = self.cfg.mapper
         kf = res.keyframe
         if (
             self.localize_only
             or res.rapid_motion
+            or res.in_doubt
             or not (
                 res.quality == Quality.GOOD
                 and kf.frames_since_keyframe > m.kf_min_frames
@@ -269,86 +298,94 @@ class System:
         return True
 
     # -- initialisation (PTAM §6.1) ----------------------------------------------------------------------
-    def _restart_init(self, pyramid, frame, reason: str | None) -> None:
+    def _initialise(self, frame) -> FrameOutcome:
+        index, ts = int(frame.index), float(frame.timestamp)
+        idle = FrameOutcome(index, ts, INITIALISING, None)
+        key, self._key_pressed = self._key_pressed, False
+        pyramid = Pyramid.build(frame.image, self.cfg.image)
+        init = self._init
+        if not init.started:
+            fixed = self.init_frames
+            if key if self.init_mode == InitMode.KEY else (fixed is None or index == fixed[0]):
+                self._start_trails(pyramid, index, ts, None)
+            return idle
+        n = init.advance(pyramid, index, ts)
+        if init.building:
+            built = init.finished()
+            return idle if built is None else self._built(built, index, ts)
+        if n < self.cfg.init.min_trails:
+            self._init_failed(pyramid, index, ts, f"too few trails survive ({n} < {self.cfg.init.min_trails})")
+        elif self._second_keyframe_now(key, index):
+            self.stats.init_attempts += 1
+            init.build(pyramid, index, ts)
+            built = init.finished()  # at once in sync mode; else on a later frame
+            if built is not None:
+                return self._built(built, index, ts)
+        return idle
+
+    def _second_keyframe_now(self, key: bool, index: int) -> bool:
+        if self.init_mode == InitMode.KEY:
+            return key
+        if self.init_frames is not None:
+            return index >= self.init_frames[1]
+        f = 0.5 * (self.camera.fx + self.camera.fy)
+        return self._init.trails.median_disparity() >= self.cfg.init.auto_min_disparity_rel_focal * f
+
+    def _start_trails(self, pyramid, index: int, ts: float, reason: str | None) -> None:
         if reason:
             log.info("initialisation restarts: %s", reason)
             self.last_failure = reason
             self.stats.init_failures.append(reason)
-        n = self.trails.start(pyramid)
-        self._first = (pyramid, float(frame.timestamp), int(frame.index))
-        self._init_frames = []
+        n = self._init.start(pyramid, index, ts)
         if n < self.cfg.init.min_trails:
             self.last_failure = f"too few corners to start trails ({n} < {self.cfg.init.min_trails})"
-            self._first = None
+            self._init.stop()
 
-    def _initialise(self, frame) -> FrameOutcome:
-        c = self.cfg.init
-        pyramid = Pyramid.build(frame.image, self.cfg.image)
-        idle = FrameOutcome(int(frame.index), float(frame.timestamp), INITIALISING, None)
-        key, self._key_pressed = self._key_pressed, False
-        fixed = self.init_frames
-        restarts = self.init_mode == InitMode.AUTO and fixed is None  # else each attempt waits for its own trigger
-        if self._first is None:
-            start = key if self.init_mode == InitMode.KEY else (fixed is None or frame.index == fixed[0])
-            if start:
-                self._restart_init(pyramid, frame, None)
-            return idle
-        n = self.trails.advance(pyramid)
-        if n < c.min_trails:
-            if restarts:
-                self._restart_init(pyramid, frame, f"too few trails survive ({n} < {c.min_trails})")
-            else:
-                self.last_failure = f"too few trails survive to frame {frame.index} ({n} < {c.min_trails})"
-                self._first = None
-            return idle
-        self._init_frames.append(frame)
-        f = 0.5 * (self.camera.fx + self.camera.fy)
-        if self.init_mode == InitMode.KEY:
-            if not key:
-                return idle
-        elif fixed is not None:
-            if frame.index < fixed[1]:
-                return idle
-        elif self.trails.median_disparity() < c.auto_min_disparity_rel_focal * f:
-            return idle
-        self.stats.init_attempts += 1
-        first = self._first
-        try:
-            T = init_from_stereo(
-                self.mapper, first[:2], (pyramid, float(frame.timestamp)), self.trails.start_xy, self.trails.current_xy
-            )
-        except InitFailure as e:
-            self.mapper = MapMaker(self.camera, self.cfg)
-            if restarts:
-                self._restart_init(pyramid, frame, str(e))
-            else:
-                self.last_failure = str(e)
-                self.stats.init_failures.append(str(e))
-                self._first = None
-            return idle
-        snap = self.mapper.snapshot
-        n_points = snap.n_points if snap is not None else 0
-        log.info("map initialised from frames %d and %d: %d points", first[2], frame.index, n_points)
-        self._after_init(first, frame, T)
-        return FrameOutcome(int(frame.index), float(frame.timestamp), TrackingState.GOOD, T, None, True)
+    def _init_failed(self, pyramid, index: int, ts: float, reason: str) -> None:
+        """Auto mode starts over from this frame; fixed frames and key presses wait for their own trigger."""
+        if self.init_mode == InitMode.AUTO and self.init_frames is None:
+            self._start_trails(pyramid, index, ts, reason)
+        else:
+            self.last_failure = f"{reason} (frame {index})"
+            self.stats.init_failures.append(reason)
+            self._init.stop()
 
-    def _after_init(self, first, frame, T_second) -> None:
-        """Record both keyframes' poses and, for frames in between, track them against the new map."""
-        T0 = self.mapper.map.kf_T_cw[0].copy()
-        self.trajectory.append((first[1], se3.inv(T0)))
-        self.stats.tracked += 1
-        if self.cfg.init.track_frames_between:
-            self.tracker.set_pose(T0)
-            for f in self._init_frames[:-1]:
-                self._track(f)
-        self.trajectory.append((float(frame.timestamp), se3.inv(T_second)))
-        self.stats.tracked += 1
-        self._init_frames = []
+    def _built(self, built, index: int, ts: float) -> FrameOutcome:
+        """The map exists (or the attempt failed): pose the frames seen since the first keyframe from their
+        trails and resume tracking from the newest."""
+        if built.mapper is None:
+            self._init_failed(self._init.trails.previous, index, ts, built.failure)
+            return FrameOutcome(index, ts, INITIALISING, None)
+        self.mapper = built.mapper
+        log.info("map initialised from frames %d and %d: %d points", built.first[0], built.second[0],
+                 self.mapper.map.n_points_total)  # fmt: skip
+        newest, T_newest = self._init.adopt(built)
+        if newest.index == built.second[0]:
+            T_newest = self.mapper.map.kf_T_cw[1]
+        if T_newest is not None:
+            self.trajectory.append((newest.timestamp, se3.inv(T_newest)))
+            self.stats.tracked += 1
+        self._collect_posed(wait=self.mode == RunMode.SYNC)
+        self._init.stop()
+        T = self.mapper.map.kf_T_cw[1] if T_newest is None else T_newest
         self.tracker.reset()
-        self.tracker.set_pose(T_second)
+        # A pose from the frame's trails alone is approximate: the next frame runs the enlarged coarse stage.
+        self.tracker.set_pose(T, recovered=newest.index != built.second[0])
         self.state = TrackingState.GOOD
         if self.mode != RunMode.SYNC:
             self._wake.set()
+        tracked = T_newest is not None and newest.index == index
+        return FrameOutcome(index, ts, TrackingState.GOOD, T if tracked else None, None, index == built.second[0])
+
+    def _collect_posed(self, wait: bool = False) -> None:
+        """Poses of the frames seen while the map was built, as the worker finishes them (in timestamp order
+        among the trajectory; PTAM §6.1's frames between the keyframes, optional)."""
+        posed = self._init.posed(wait)
+        if not self.cfg.init.track_frames_between:
+            return
+        for fr, T in posed:
+            bisect.insort(self.trajectory, (fr.timestamp, se3.inv(T)), key=lambda p: p[0])
+        self.stats.tracked += len(posed)
 
 
 def run_dataset(path, cfg: Config, mode: RunMode | str | None = None, **kwargs) -> System:
