@@ -84,7 +84,7 @@ def load_camera(path: str | os.PathLike) -> CameraModel:
     try:
         with open(path) as f:
             d = yaml.safe_load(f)
-    except (OSError, yaml.YAMLError) as e:
+    except (OSError, yaml.YAMLError, UnicodeDecodeError) as e:
         raise InputError(f"cannot read calibration {path}: {str(e).splitlines()[0]}") from None
     return camera_from_dict(d, where=path)
 

@@ -8,7 +8,7 @@ import os
 import numpy as np
 
 from ..errors import InputError
-from .images import ImageSequence, fps_from_timestamps
+from .images import ImageSequence, check_increasing, fps_from_timestamps
 
 _NS_PER_S = 1_000_000_000
 
@@ -22,9 +22,9 @@ def find_cam0(directory: str) -> str | None:
 
 
 def read_data_csv(path: str) -> tuple[np.ndarray, list[str]]:
-    """Timestamps in seconds (N,) and image paths in the sibling ``data/`` folder."""
+    """Timestamps in seconds (N,), strictly increasing, and image paths in the sibling ``data/`` folder."""
     data_dir = os.path.join(os.path.dirname(path), "data")
-    ns, paths = [], []
+    ns, paths, linenos = [], [], []
     try:
         with open(path) as f:
             lines = f.read().splitlines()
@@ -39,13 +39,17 @@ def read_data_csv(path: str) -> tuple[np.ndarray, list[str]]:
             if len(parts) != 2 or not parts[1]:
                 raise ValueError
             stamp = int(parts[0])
+            if not -(2**63) <= stamp < 2**63:
+                raise ValueError
         except ValueError:
             raise InputError(f"{path}:{lineno}: expected 'timestamp_ns,filename', got {text!r}") from None
         ns.append(stamp)
         paths.append(os.path.join(data_dir, parts[1]))
+        linenos.append(lineno)
     if not paths:
         raise InputError(f"{path}: lists no images")
     ns = np.array(ns, dtype=np.int64)
+    check_increasing(path, ns, linenos)  # in integer nanoseconds: exact, before any float conversion
     # Split whole seconds from the remainder so the float conversion keeps every nanosecond it can.
     stamps = (ns // _NS_PER_S).astype(np.float64) + (ns % _NS_PER_S) / _NS_PER_S
     return stamps, paths

@@ -59,6 +59,18 @@ class ImageSequence(FrameSource):
             yield Frame(i, float(self.timestamps[i]), grey, colour)
 
 
+def check_increasing(path: str, timestamps: np.ndarray, linenos: Sequence[int]) -> None:
+    """Refuse an index file whose timestamps (read from lines ``linenos``) do not increase strictly: frames
+    would be replayed out of order, or two frames would share one time."""
+    back = np.flatnonzero(np.diff(np.asarray(timestamps, dtype=np.float64)) <= 0)
+    if back.size:
+        i = int(back[0]) + 1
+        raise InputError(
+            f"{path}:{linenos[i]}: timestamp {timestamps[i]} is not after the previous image's {timestamps[i - 1]} "
+            f"(timestamps must increase strictly)"
+        )
+
+
 def fps_from_timestamps(timestamps: np.ndarray, fallback: float) -> float:
     """The median frame rate of a timestamped sequence (robust to dropped frames)."""
     dt = np.diff(np.asarray(timestamps, dtype=np.float64))

@@ -9,15 +9,15 @@ import os
 import numpy as np
 
 from ..errors import InputError
-from .images import ImageSequence, fps_from_timestamps
+from .images import ImageSequence, check_increasing, fps_from_timestamps
 
 INDEX_FILE = "rgb.txt"
 
 
 def read_rgb_txt(path: str) -> tuple[np.ndarray, list[str]]:
-    """Timestamps (N,) and paths (made absolute against the file's directory)."""
+    """Timestamps (N,), strictly increasing, and paths (made absolute against the file's directory)."""
     base = os.path.dirname(path)
-    stamps, paths = [], []
+    stamps, paths, linenos = [], [], []
     try:
         with open(path) as f:
             lines = f.read().splitlines()
@@ -38,8 +38,10 @@ def read_rgb_txt(path: str) -> tuple[np.ndarray, list[str]]:
             raise InputError(f"{path}:{lineno}: expected 'timestamp path', got {line.strip()!r}") from None
         stamps.append(t)
         paths.append(os.path.join(base, parts[1]))
+        linenos.append(lineno)
     if not paths:
         raise InputError(f"{path}: lists no images")
+    check_increasing(path, np.array(stamps), linenos)
     return np.array(stamps), paths
 
 

@@ -3,9 +3,13 @@
 The viewer (rerun) opens by itself when there is a display, showing the augmented image first (``--ar``, default
 ``ar.scene``); ``--rrd FILE`` records instead, ``--serve`` serves the web viewer on 127.0.0.1, ``--no-viewer`` logs
 nothing. Live cameras are driven from the terminal as in PTAM: space takes the two keyframes of stereo
-initialisation (§6.1), ``r`` resets, ``q`` quits; ``a`` switches the AR scene, ``f`` fires. Everything asked for
-(trajectory, keyframes, map) is written at the end of the stream, on Ctrl-C and on errors alike (a camera that
-disappears, a truncated video), then a summary is printed. ``--load-map`` starts from a saved map;
+initialisation (§6.1), ``r`` resets, ``q`` quits; ``a`` switches the AR scene, ``f`` fires. Output paths are
+checked before the first frame. The trajectory is streamed to its file as the run goes (flushed every second), the
+keyframes and the map are rewritten atomically every ``system.map_checkpoint_keyframes`` keyframes
+(``run_outputs``), so even a SIGKILL leaves them on disk; everything is finished at the end of the stream, on
+Ctrl-C, SIGTERM, SIGHUP and on errors alike (a camera that disappears, a truncated video), then a summary is
+printed. An output that still cannot be written does not stop the others: exit 2 after the summary, one line
+naming it. ``--load-map`` starts from a saved map;
 ``--localize-only`` tracks against it without mapping. A dataset that carries ``groundtruth.txt`` (TUM layout,
 e.g. from ``ptam synth``) is also scored: ATE after Sim(3) alignment, next to PTAM's 6 mm on its two-wall sequence.
 """
@@ -13,7 +17,6 @@ e.g. from ``ptam synth``) is also scored: ATE after Sim(3) alignment, next to PT
 from __future__ import annotations
 
 import logging
-import os
 import signal
 import sys
 import threading
@@ -27,12 +30,12 @@ from ..capture import find_calibration, open_source
 from ..capture.keys import TerminalKeys
 from ..capture.realtime import RealtimeFeed
 from ..errors import InputError, PtamError
-from ..eval import write_tum
 from ..eval.score import score_trajectory
 from ..image.pyramid import Pyramid
-from ..map.map_file import load_map, save_map
+from ..map.map_file import load_map
 from ..system import System
 from ..vocabulary import ArScene, InitMode, RunMode, TrackingState
+from .run_outputs import RunOutputs, check_output_paths, finish_video
 from .run_progress import Display
 from .run_summary import print_summary
 
@@ -46,6 +49,8 @@ AR_KEYS_HELP = (
     "ptam: AR keys: a = next AR scene (grid, eyes = PTAM's EyeGame, game, off), "
     "f = fire in the game (aiming at a target for ar.dwell_frames frames also hits it)"
 )
+
+STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
 
 log = logging.getLogger("ptam")
 
@@ -67,16 +72,7 @@ def _check_arguments(args) -> None:
         raise InputError("--localize-only needs a map to track against: add --load-map FILE")
     if args.no_viewer and (args.rrd or args.serve):
         raise InputError("--no-viewer logs nothing; leave it out to use --rrd or --serve")
-    for option, path in (
-        ("--trajectory", args.trajectory),
-        ("--keyframes", args.keyframes),
-        ("--map", args.map),
-        ("--rrd", args.rrd),
-    ):
-        if path:
-            directory = os.path.dirname(os.path.abspath(path))
-            if not os.path.isdir(directory):
-                raise InputError(f"{option} {path}: directory {directory} does not exist")
+    check_output_paths(args)
 
 
 def _open(args, cfg, map_camera):
@@ -137,33 +133,6 @@ def _open_recording(args, cfg):
         return None
     print(f"ptam: {', '.join(recording.targets)}", file=sys.stderr)
     return recording
-
-
-def _write_outputs(args, system: System, camera, cfg) -> None:
-    snap = system.mapper.snapshot
-    try:
-        if args.trajectory:
-            t = np.array([p[0] for p in system.trajectory])
-            T = np.array([p[1] for p in system.trajectory]).reshape(-1, 4, 4)
-            write_tum(args.trajectory, t, T, header="ptam trajectory: timestamp tx ty tz qx qy qz qw (camera-to-world)")
-        if args.keyframes:
-            if snap is None or snap.n_keyframes == 0:
-                write_tum(args.keyframes, np.zeros(0), np.zeros((0, 4, 4)), header="ptam keyframes (none)")
-            else:
-                t = np.array([k.timestamp for k in snap.keyframes])
-                write_tum(
-                    args.keyframes,
-                    t,
-                    np.linalg.inv(snap.kf_T_cw),
-                    header="ptam keyframes: timestamp tx ty tz qx qy qz qw (camera-to-world)",
-                )
-    except OSError as e:
-        raise InputError(f"cannot write {e.filename}: {e.strerror}") from None
-    if args.map:
-        if snap is None or snap.n_keyframes == 0:
-            print(f"ptam: no map to write to {args.map} (no map was built)", file=sys.stderr)
-        else:
-            save_map(args.map, snap, camera, cfg.image.levels)
 
 
 def _score(dataset: str | None, system: System, embedded: bool) -> None:
@@ -241,8 +210,9 @@ def _serve_until_interrupted(recording, stop: _StopRequest) -> None:
 
 
 class _StopRequest:
-    """Ctrl-C and SIGTERM during a run: the first asks it to stop after the current frame, so the outputs are
-    written from a consistent state; a second one interrupts at once (e.g. a camera that no longer delivers)."""
+    """Ctrl-C, SIGTERM and SIGHUP (the terminal closed) during a run: the first asks it to stop after the current
+    frame, so the outputs are written from a consistent state; a second one interrupts at once (e.g. a camera that
+    no longer delivers)."""
 
     def __init__(self):
         self.requested = False
@@ -255,7 +225,7 @@ class _StopRequest:
 
     def __enter__(self) -> _StopRequest:
         if threading.current_thread() is threading.main_thread():
-            for sig in (signal.SIGINT, signal.SIGTERM):
+            for sig in STOP_SIGNALS:
                 self._previous[sig] = signal.signal(sig, self._handle)
         return self
 
@@ -321,7 +291,7 @@ def _attach_observers(args, cfg, system: System, camera, recording, fps: float):
         from ..ar import attach
 
         ar = attach(system, scene, args.ar_video, fps)
-        if shown:
+        if shown and viewer is not None:
             ar.listeners.append(viewer.augmented)
     return viewer, ar
 
@@ -352,11 +322,9 @@ def _process(system: System, feed, keys: TerminalKeys, display: Display, stop: _
     return False
 
 
-def _run(args, cfg, source, camera, mode, init_frames, loaded, recording, live, stop) -> tuple[System, int]:
-    """Process the source to its end (or q, Ctrl-C, an input error); outputs are written whatever happens."""
-    keys = TerminalKeys(sys.stdin if live else None)
+def _system(args, cfg, camera, mode, init_frames, loaded, keys: TerminalKeys) -> System:
     init_mode = InitMode.KEY if keys.active and init_frames is None else InitMode.AUTO
-    system = System(
+    return System(
         camera,
         cfg,
         mode=mode,
@@ -365,13 +333,37 @@ def _run(args, cfg, source, camera, mode, init_frames, loaded, recording, live, 
         localize_only=args.localize_only,
         init_mode=init_mode,
     )
-    viewer, ar = _attach_observers(args, cfg, system, camera, recording, source.fps)
+
+
+def _finish(system: System, viewer, ar, outputs: RunOutputs, video: str | None) -> list[str]:
+    """Close the observers and finish every output; one line per output that could not be written."""
+    failures = []
+    try:
+        _close_observers(system, viewer, ar)
+        finish_video(video)
+    except (PtamError, OSError) as e:  # the AR video; the files below are still written
+        failures.append(f"--ar-video {video}: {e}" if video else str(e))
+    finally:
+        failures += outputs.close(system)
+    return failures
+
+
+def _run(args, cfg, source, camera, mode, init_frames, loaded, recording, live, stop) -> tuple[System, int]:
+    """Process the source to its end (or q, Ctrl-C, an input error); outputs are written whatever happens."""
+    keys = TerminalKeys(sys.stdin if live else None)
+    system = _system(args, cfg, camera, mode, init_frames, loaded, keys)
+    outputs = RunOutputs(args, cfg, camera).start(system)
+    try:
+        viewer, ar = _attach_observers(args, cfg, system, camera, recording, source.fps)
+    except BaseException:
+        outputs.abandon()
+        raise
     feed = RealtimeFeed(source) if mode == RunMode.REALTIME else source
-    if init_mode == InitMode.KEY:
+    if system.init_mode == InitMode.KEY:
         print(KEYS_HELP, file=sys.stderr)
     if keys.active and ar is not None:
         print(AR_KEYS_HELP, file=sys.stderr)
-    interrupted, error = False, None
+    interrupted, error, failures = False, None, []
     try:
         with system, keys, Display(source.length, cfg.viewer.status_interval_s) as display:
             interrupted = _process(system, feed, keys, display, stop, ar)
@@ -382,16 +374,15 @@ def _run(args, cfg, source, camera, mode, init_frames, loaded, recording, live, 
     finally:
         if isinstance(feed, RealtimeFeed):
             feed.close()
-        try:
-            _close_observers(system, viewer, ar)
-        finally:
-            _write_outputs(args, system, camera, cfg)
+        failures = _finish(system, viewer, ar, outputs, args.ar_video if ar is not None else None)
     if interrupted:
         print("ptam: interrupted; wrote what was computed", file=sys.stderr)
-    print_summary(system, mode, feed.dropped if isinstance(feed, RealtimeFeed) else None, viewer)
+    print_summary(system, mode, feed.dropped if isinstance(feed, RealtimeFeed) else None, viewer, outputs.checkpoints)
     if not system.mapper.initialised:
         reason = system.last_failure or "no frame gave a usable stereo pair"
         print(f"initialisation did not succeed: {reason}")
     if error is not None:
         raise error
+    if failures:
+        raise InputError("; ".join(failures))
     return system, 130 if interrupted else 0

@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 
 
-def print_summary(system, mode: str, dropped: int | None, viewer=None) -> None:
+def print_summary(system, mode: str, dropped: int | None, viewer=None, checkpoints: int = 0) -> None:
     """Frames, tracked %, lost events, relocalisations, keyframes, points; median / p95 tracking ms, bundle
-    adjustment runs, frames dropped in realtime mode and frames the viewer had no time to log."""
+    adjustment runs, frames dropped in realtime mode, frames the viewer had no time to log and map checkpoints
+    written during the run."""
     s = system.stats
     snap = system.mapper.snapshot
     kfs = snap.n_keyframes if snap is not None else 0
@@ -28,4 +29,6 @@ def print_summary(system, mode: str, dropped: int | None, viewer=None) -> None:
         line += f"  dropped frames {dropped}"
     if viewer is not None and viewer.dropped:
         line += f"  frames not shown in the viewer {viewer.dropped}"
+    if checkpoints:
+        line += f"  checkpoints {checkpoints}"
     print(line)

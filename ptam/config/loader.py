@@ -1,7 +1,8 @@
 """Loading the configuration: ``configs/default.yaml``, then ``--config`` files, then ``--set`` overrides.
 
 Unknown keys are rejected with a "did you mean" suggestion, values of the wrong type (or outside an enum's
-vocabulary) with a :class:`ConfigError`.
+vocabulary) and numbers outside their field's :class:`~ptam.config.sections.Range` with a :class:`ConfigError`,
+whether they come from a file or from ``--set``.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import yaml
 
 from ..errors import ConfigError
 from ..resources import resource_path
-from .sections import Config
+from .sections import Config, Range
 
 
 @functools.cache
@@ -30,6 +31,35 @@ def _section_types() -> dict[str, type]:
 @functools.cache
 def _field_types(section_cls) -> dict[str, type]:
     return typing.get_type_hints(section_cls)
+
+
+@functools.cache
+def _field_ranges(section_cls) -> dict[str, Range]:
+    """The :class:`Range` of each numeric field of a section (from its ``Annotated`` type)."""
+    hints = typing.get_type_hints(section_cls, include_extras=True)
+    return {
+        name: r
+        for name, hint in hints.items()
+        if typing.get_origin(hint) is typing.Annotated
+        for r in hint.__metadata__
+        if isinstance(r, Range)
+    }
+
+
+def _check_range(where: str, value, rng: Range | None, source: str) -> None:
+    """``value`` (a number, or a list of them, already of the field's type) lies in ``rng``."""
+    if rng is None:
+        return
+    origin = "" if source == "--set" else f" ({source})"
+    if isinstance(value, (list, tuple)):
+        if rng.length is not None and len(value) != rng.length:
+            raise ConfigError(f"config: {where} must have {rng.length} elements, got {len(value)}{origin}")
+        items = [(f"{where}[{i}]", v) for i, v in enumerate(value)]
+    else:
+        items = [(where, value)]
+    for at, v in items:
+        if v not in rng:
+            raise ConfigError(f"config: {at} must be in {rng}, got {v!r}{origin}")
 
 
 def _suggest(name: str, options) -> str:
@@ -85,8 +115,9 @@ def _set(base: dict, sec: str, key: str, value, source: str) -> None:
     if key not in hints:
         options = [f"{sec}.{k}" for k in hints] + [f"{s}.{k}" for s in sections for k in _field_types(sections[s])]
         raise ConfigError(f"{source}: unknown config key '{sec}.{key}'{_suggest(f'{sec}.{key}', options)}")
-    value = _coerce(f"{sec}.{key}", value, hints[key])
-    base.setdefault(sec, {})[key] = value
+    coerced = _coerce(f"{sec}.{key}", value, hints[key])
+    _check_range(f"{sec}.{key}", value, _field_ranges(sections[sec]).get(key), source)
+    base.setdefault(sec, {})[key] = coerced
 
 
 def _build(raw: dict) -> Config:
@@ -107,7 +138,7 @@ def _read_yaml(path: str):
     try:
         with open(path) as f:
             return yaml.safe_load(f) or {}
-    except (OSError, yaml.YAMLError) as e:
+    except (OSError, yaml.YAMLError, UnicodeDecodeError) as e:
         raise ConfigError(f"cannot read config {path}: {str(e).splitlines()[0]}") from None
 
 

@@ -29,7 +29,7 @@ def read_tum(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
             lines = f.read().splitlines()
     except (OSError, UnicodeDecodeError) as e:
         raise InputError(f"cannot read trajectory {path}: {e}") from None
-    rows = []
+    rows, linenos = [], []
     for lineno, line in enumerate(lines, 1):
         text = line.split("#", 1)[0].replace(",", " ").strip()
         if not text:
@@ -43,7 +43,15 @@ def read_tum(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
         if not np.any(row[4:]):
             raise InputError(f"{path}:{lineno}: zero quaternion")
         rows.append(row)
+        linenos.append(lineno)
     data = np.array(rows, dtype=np.float64).reshape(-1, _FIELDS)
+    back = np.flatnonzero(np.diff(data[:, 0]) <= 0)
+    if back.size:
+        i = back[0] + 1
+        raise InputError(
+            f"{path}:{linenos[i]}: timestamp {data[i, 0]:.9f} is not after the previous pose's "
+            f"{data[i - 1, 0]:.9f} (timestamps must increase strictly)"
+        )
     T = np.zeros((len(data), 4, 4))
     T[:, :3, :3] = so3.from_quaternion(data[:, 4:])
     T[:, :3, 3] = data[:, 1:4]

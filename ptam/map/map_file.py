@@ -24,6 +24,7 @@ from ..errors import InputError, PtamError
 from ..image.pyramid import Pyramid
 from .keyframe import KeyFrame
 from .map import Map
+from .map_file_checks import FIELDS, check_layout, check_values, read_members, scalar
 from .snapshot import MapSnapshot
 
 FORMAT = "ptam-map"
@@ -31,8 +32,6 @@ VERSION = 1
 
 _POINTS = ("X", "normal", "source_kf", "source_level", "source_xy", "bad")
 _MEASUREMENTS = ("meas_kf", "meas_pt", "meas_xy", "meas_level", "meas_source")
-_KEYFRAMES = ("kf_image0", "kf_T_cw", "kf_depth_mean", "kf_depth_sigma", "kf_timestamp")
-_HEADER = ("format", "version", "camera", "levels")
 
 
 @dataclass(frozen=True)
@@ -80,62 +79,72 @@ def save_map(path: str | os.PathLike, snapshot: MapSnapshot, camera, levels: int
         raise
 
 
-def _read(path: str) -> dict[str, np.ndarray]:
+def _read(path: str, image_cfg) -> tuple[dict[str, np.ndarray], object]:
+    """The checked arrays of the map file at ``path`` and its camera: member headers, format, version, camera,
+    pyramid depth and every field's dtype and shape are checked before the arrays are loaded, their values
+    after (:mod:`map_file_checks`)."""
     if not os.path.isfile(path):
         raise InputError(f"map file not found: {path}")
     if not zipfile.is_zipfile(path):
         raise InputError(f"{path} is not a ptam map file (not an .npz archive, or truncated)")
     try:
+        members = read_members(path)
         with np.load(path, allow_pickle=False) as z:
-            if "format" not in z.files or str(z["format"]) != FORMAT:
-                raise InputError(f"{path} is not a ptam map file")
-            version = int(z["version"]) if "version" in z.files else -1
-            if version != VERSION:
-                raise InputError(f"map file {path} has format version {version}; this ptam reads version {VERSION}")
-            missing = [k for k in _HEADER + _KEYFRAMES + _POINTS + _MEASUREMENTS if k not in z.files]
-            if missing:
-                raise InputError(f"map file {path} is incomplete: no '{missing[0]}'")
-            return {k: z[k] for k in z.files}
+            _check_format(path, z, members)
+            camera = _camera(path, z["camera"])
+            levels = scalar(path, z["levels"], "levels", "iu")
+            if levels != image_cfg.levels:
+                raise InputError(
+                    f"map file {path} was built with {levels} pyramid levels; the config has "
+                    f"image.levels = {image_cfg.levels}"
+                )
+            check_layout(path, members, camera.width, camera.height)
+            arrays = {k: z[k] for k in FIELDS}
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as e:
         raise InputError(f"cannot read map file {path}: corrupt or not a ptam map ({e})") from None
+    check_values(path, arrays, camera.width, camera.height, levels)
+    return arrays, camera
+
+
+def _check_format(path: str, z, members: dict) -> None:
+    """The format string and version (first: another version may hold other fields), then every field present."""
+    if "format" not in members or members["format"].dtype.kind != "U" or str(z["format"]) != FORMAT:
+        raise InputError(f"{path} is not a ptam map file")
+    v = members.get("version")
+    version = int(z["version"]) if v is not None and v.dtype.kind in "iu" and v.shape == () else -1
+    if version != VERSION:
+        raise InputError(f"map file {path} has format version {version}; this ptam reads version {VERSION}")
+    missing = [k for k in FIELDS if k not in members]
+    if missing:
+        raise InputError(f"map file {path} is incomplete: no '{missing[0]}'")
+
+
+def _camera(path: str, member: np.ndarray):
+    try:
+        record = json.loads(scalar(path, member, "camera", "U"))
+    except json.JSONDecodeError:
+        raise InputError(f"map file {path}: unreadable camera record") from None
+    return camera_from_dict(record, where=f"map file {path}: camera")
 
 
 def load_map(path: str | os.PathLike, image_cfg) -> LoadedMap:
     """Read a map file written by :func:`save_map`; keyframe pyramids are rebuilt with ``image_cfg``.
 
-    Any problem with the file (missing, corrupt, another format or version, inconsistent arrays, a pyramid depth
-    other than ``image_cfg.levels``) raises :class:`InputError` naming the file."""
+    Any problem with the file (missing, corrupt, another format or version, a wrong dtype or shape, a size its
+    archive cannot back, non-finite values, an index or level out of range, duplicate measurements, a pyramid
+    depth other than ``image_cfg.levels``) raises :class:`InputError` naming the file and the field; the checks
+    (:mod:`map_file_checks`) run before anything is built from the file."""
     path = os.fspath(path)
-    a = _read(path)
-    try:
-        camera = camera_from_dict(json.loads(str(a["camera"])), where=f"map file {path}: camera")
-    except json.JSONDecodeError:
-        raise InputError(f"map file {path}: unreadable camera record") from None
-    if int(a["levels"]) != image_cfg.levels:
-        raise InputError(
-            f"map file {path} was built with {int(a['levels'])} pyramid levels; the config has "
-            f"image.levels = {image_cfg.levels}"
-        )
-    images = a["kf_image0"]
-    n = len(images)
-    if n == 0 or images.ndim != 3 or images.dtype != np.uint8 or images.shape[1:] != (camera.height, camera.width):
-        raise InputError(
-            f"map file {path}: keyframe images of shape {images.shape} ({images.dtype}) do not match "
-            f"its {camera.width}x{camera.height} camera"
-        )
-    if any(len(a[k]) != n for k in _KEYFRAMES):
-        raise InputError(f"map file {path}: keyframe arrays of different lengths")
+    a, camera = _read(path, image_cfg)
     m = Map()
     try:
-        for i in range(n):
-            pyramid = Pyramid.build(images[i], image_cfg)
+        for i, image in enumerate(a["kf_image0"]):
+            pyramid = Pyramid.build(image, image_cfg)
             kf = KeyFrame(
                 i, pyramid, float(a["kf_depth_mean"][i]), float(a["kf_depth_sigma"][i]), float(a["kf_timestamp"][i])
             )
             m.add_keyframe(kf, a["kf_T_cw"][i])
         m.add_points(a["X"], a["normal"], a["source_kf"], a["source_level"], a["source_xy"])
-        if a["bad"].shape != (m.n_points_total,):
-            raise PtamError(f"bad flags of shape {a['bad'].shape} for {m.n_points_total} points")
         if a["bad"].any():
             m.mark_bad(np.flatnonzero(a["bad"]))
         m.add_measurements(a["meas_kf"], a["meas_pt"], a["meas_xy"], a["meas_level"], a["meas_source"])

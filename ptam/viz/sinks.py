@@ -1,8 +1,11 @@
 """Where the recording goes: the native rerun viewer (spawned), an ``.rrd`` file, or a web viewer served on
 127.0.0.1 only.
 
-rerun's Python ``serve_web_viewer`` binds every interface, so ``--serve`` runs the rerun command-line server
-(``rerun --serve-web --bind 127.0.0.1``) as a child process and streams to it; the child ends with the run.
+Every server ptam starts listens on 127.0.0.1. rerun's Python ``serve_web_viewer`` binds every interface, so
+``--serve`` runs the rerun command-line server (``rerun --serve-web --bind 127.0.0.1``) as a child process and
+streams to it; the child ends with the run. ``rr.spawn`` passes no bind address to the native viewer, whose gRPC
+server then listens on every interface (rerun's default ``--bind 0.0.0.0``), so the native viewer is started
+here, as ``rr.spawn`` would start it but with ``--bind 127.0.0.1``; it stays open after the run, like a spawned one.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from ..errors import InputError
 
 APPLICATION_ID = "ptam"
 LOCALHOST = "127.0.0.1"
+SPAWN_MEMORY_LIMIT = "75%"  # rr.spawn's default memory limit for the native viewer (rerun drops the oldest data)
 
 
 def has_display() -> bool:
@@ -29,13 +33,13 @@ def has_display() -> bool:
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
-def _rerun_executable() -> str:
+def _rerun_executable(purpose: str = "--serve") -> str:
     import rerun_cli
 
     bundled = os.path.join(os.path.dirname(rerun_cli.__file__), "rerun")
     path = bundled if os.path.isfile(bundled) else shutil.which("rerun")
     if path is None:
-        raise InputError("--serve needs the rerun command-line viewer (pip install rerun-sdk)")
+        raise InputError(f"{purpose} needs the rerun command-line viewer (pip install rerun-sdk)")
     return path
 
 
@@ -113,6 +117,60 @@ class WebServer:
                 self.process.wait()
 
 
+def native_viewer_command(viewer_cfg) -> list[str]:
+    """The command ``rr.spawn`` runs for the native viewer (its memory limits, no welcome screen, data expected
+    soon), plus ``--bind 127.0.0.1``."""
+    return [
+        _rerun_executable("the native viewer"),
+        "--bind",
+        LOCALHOST,
+        "--port",
+        str(viewer_cfg.grpc_port),
+        "--memory-limit",
+        SPAWN_MEMORY_LIMIT,
+        "--server-memory-limit",
+        viewer_cfg.server_memory_limit,
+        "--hide-welcome-screen",
+        "--expect-data-soon",
+    ]
+
+
+@dataclass
+class NativeViewer:
+    """The native rerun viewer listening on 127.0.0.1:``viewer.grpc_port`` (``process`` None: one was already
+    listening there, and is used as ``rr.spawn`` would use it)."""
+
+    process: subprocess.Popen | None
+    grpc_url: str
+
+    @classmethod
+    def start(cls, viewer_cfg) -> NativeViewer:
+        """Start the viewer (detached: it outlives the run) and wait until it listens. A viewer that cannot start
+        (no display, no GPU) raises RuntimeError: the run goes on without it."""
+        port = viewer_cfg.grpc_port
+        url = f"rerun+http://{LOCALHOST}:{port}/proxy"
+        if _listening(port):
+            return cls(None, url)
+        process = subprocess.Popen(
+            native_viewer_command(viewer_cfg),
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            start_new_session=True,
+            env={**os.environ, "RERUN_APP_ONLY": "true"},  # as rr.spawn: an app launch, no analytics prompt
+        )
+        deadline = time.monotonic() + viewer_cfg.serve_start_timeout_s
+        while not _listening(port):
+            if process.poll() is not None:
+                raise RuntimeError(f"the rerun viewer exited with code {process.returncode} before listening")
+            if time.monotonic() > deadline:
+                process.kill()
+                process.wait()
+                raise RuntimeError(f"the rerun viewer did not listen on {LOCALHOST}:{port} in time")
+            time.sleep(0.05)
+        return cls(process, url)
+
+
 @dataclass
 class Recording:
     """The open recording stream, the web server behind ``--serve`` if any, and where the data goes (for humans)."""
@@ -144,8 +202,7 @@ def open_recording(viewer_cfg, spawn: bool = False, rrd: str | None = None, serv
         sinks.append(rr.GrpcSink(server.grpc_url))
         targets.append(f"web viewer at {server.url}")
     if spawn:
-        rr.spawn(port=viewer_cfg.grpc_port, connect=False, hide_welcome_screen=True)
-        sinks.append(rr.GrpcSink(f"rerun+http://{LOCALHOST}:{viewer_cfg.grpc_port}/proxy"))
+        sinks.append(rr.GrpcSink(NativeViewer.start(viewer_cfg).grpc_url))
         targets.append("native viewer")
     stream.set_sinks(*sinks)
     return Recording(stream, server, targets)

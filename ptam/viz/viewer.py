@@ -14,8 +14,9 @@ What is logged (entity paths):
   lens model, at the same ``frame`` / ``time`` as its camera image: :meth:`Viewer.augmented` is the AR layer's
   listener; it runs in the AR worker's thread and only enqueues (skipped, counted in ``ar_dropped``, when full);
 * ``world/points`` the good map points coloured by source level; ``world/keyframes/NNNN`` one frustum per
-  keyframe with its thumbnail; ``world/trajectory`` the tracked camera path; ``world/grid`` the dominant plane
-  z = 0 once a map exists (PTAM §6.1);
+  keyframe with its thumbnail; ``world/trajectory/NNNNN`` the tracked camera path, logged incrementally in
+  strips (at :meth:`Viewer.close`, ``world/trajectory`` holds the whole path as one strip); ``world/grid`` the
+  dominant plane z = 0 once a map exists (PTAM §6.1);
 * ``state`` initialising / good / poor / lost / relocalising (PTAM §5.6);
 * ``plots/...`` tracking ms per frame, map points and keyframes over time (PTAM Fig. 4) and the mapper's queue
   length and bundle adjustment activity.
@@ -39,6 +40,18 @@ from . import map_entities, palette
 from .blueprint import AUGMENTED_IMAGE, default_blueprint
 
 _BA_CODES = {None: 0, "local": 1, "global": 2}
+# Vertices per trajectory strip entity: a frame re-logs at most about this many (display only, not a tunable).
+_STRIP_VERTICES = 100
+
+
+def _strip_of(n_vertices: int, k: int) -> int:
+    """The strip holding the newest vertex of a path of ``n_vertices`` (≥ 1): strip c spans vertices
+    c·k … (c+1)·k, so consecutive strips share one vertex and the path stays connected."""
+    return max(n_vertices - 2, 0) // k
+
+
+def _strip_path(c: int) -> str:
+    return f"world/trajectory/{c:05d}"
 
 
 @dataclass(frozen=True)
@@ -83,7 +96,8 @@ class Viewer:
         self._kf_logged: tuple = ()  # KeyFrame objects whose thumbnails are logged
         self._kf_poses = np.zeros((0, 4, 4))
         self._trajectory: list | None = None
-        self._traj_xyz = np.zeros((0, 3))
+        self._traj_xyz = np.zeros((0, 3))  # camera centres of the logged trajectory (a buffer, first _traj_n rows)
+        self._traj_n = 0
         self._state: str | None = None
         self._grid = False
         self._error: BaseException | None = None
@@ -193,7 +207,7 @@ class Viewer:
             self._log_frame(o, item)
         if item.snapshot is not self._snapshot:
             self._log_map(item.snapshot)
-        self._log_trajectory(item.trajectory, item.n_trajectory)
+        self._log_trajectory(item.trajectory, item.n_trajectory, final=o is None)
         self._log_plots(o, item)
 
     def _log_augmented(self, a: _ArFrame) -> None:
@@ -294,15 +308,38 @@ class Viewer:
             self._emit("world/grid", rr.LineStrips3D(lines, colors=colours))
             self._grid = True
 
-    def _log_trajectory(self, trajectory: list, n: int) -> None:
+    def _log_trajectory(self, trajectory: list, n: int, final: bool) -> None:
+        """The tracked path, incrementally: vertices go into strips of ``_STRIP_VERTICES``, each its own entity
+        (``world/trajectory/NNNNN``), and a frame logs only the strips its new vertices touch, so a recording
+        grows linearly with the frames. The final item (:meth:`close`) replaces the strips by the whole path as one
+        strip at ``world/trajectory``."""
         if trajectory is not self._trajectory:  # the first frame, or a new map after System.reset
-            self._trajectory, self._traj_xyz = trajectory, np.zeros((0, 3))
-        elif n == len(self._traj_xyz):
+            if self._traj_n:
+                self._emit("world/trajectory", rr.Clear(recursive=True))
+            self._trajectory, self._traj_n = trajectory, 0
+        elif n == self._traj_n and not final:
             return
-        new = [T[:3, 3] for _, T in trajectory[len(self._traj_xyz) : n]]
-        if new:
-            self._traj_xyz = np.concatenate([self._traj_xyz, np.array(new)])
-        self._emit("world/trajectory", rr.LineStrips3D([self._traj_xyz], colors=palette.TRAJECTORY_COLOUR))
+        n_old = self._traj_n
+        self._append_vertices(trajectory, n)
+        xyz, K = self._traj_xyz[:n], _STRIP_VERTICES
+        if final:
+            for c in range(_strip_of(n_old, K) + 1 if n_old else 0):
+                self._emit(_strip_path(c), rr.Clear(recursive=False))
+            self._emit("world/trajectory", rr.LineStrips3D([xyz], colors=palette.TRAJECTORY_COLOUR))
+            return
+        for c in range(_strip_of(n_old + 1, K), _strip_of(n, K) + 1):
+            strip = xyz[c * K : min((c + 1) * K, n - 1) + 1]
+            self._emit(_strip_path(c), rr.LineStrips3D([strip], colors=palette.TRAJECTORY_COLOUR))
+
+    def _append_vertices(self, trajectory: list, n: int) -> None:
+        """Camera centres of ``trajectory[self._traj_n:n]`` into the vertex buffer (its capacity doubles)."""
+        if n > len(self._traj_xyz):
+            grown = np.zeros((max(n, 2 * len(self._traj_xyz)), 3))
+            grown[: self._traj_n] = self._traj_xyz[: self._traj_n]
+            self._traj_xyz = grown
+        if n > self._traj_n:
+            self._traj_xyz[self._traj_n : n] = [T[:3, 3] for _, T in trajectory[self._traj_n : n]]
+        self._traj_n = n
 
     def _log_plots(self, o, item: _Item) -> None:
         snap = item.snapshot
