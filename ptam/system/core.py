@@ -20,11 +20,9 @@ relocalising (PTAM code: only the normal tracking branch adds keyframes).
 
 from __future__ import annotations
 
-import bisect
 import logging
 import threading
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +39,8 @@ from ..tracking.relocaliser import Relocaliser
 from ..tracking.tracker import Tracker
 from ..tracking.trails import TrailTracker
 from ..vocabulary import InitMode, Quality, RunMode, TrackingState
+from .frame_outcome import FrameOutcome
+from .initialisation import Initialisation
 from .run_stats import RunStats
 from .stereo_start import StereoStart
 from .warm_up import warm_up
@@ -50,25 +50,11 @@ log = logging.getLogger("ptam")
 INITIALISING, LOST, RELOCALISING = TrackingState.INITIALISING, TrackingState.LOST, TrackingState.RELOCALISING
 
 
-@dataclass
-class FrameOutcome:
-    """What happened to one frame: the state, the pose if tracked (T_cw), and the tracker's result if any."""
-
-    index: int
-    timestamp: float
-    state: TrackingState
-    T_cw: np.ndarray | None
-    result: object = None
-    keyframe_added: bool = False
-    process_ms: float = 0.0
-    frame: object = None  # the capture Frame, for observers that show the image
-
-
 def _tracked_state(res) -> TrackingState:
     return TrackingState.GOOD if res.quality == Quality.GOOD else TrackingState.POOR
 
 
-class System:
+class System(Initialisation):
     """``map_``: start from an existing map (e.g. loaded from a file) instead of initialising; the tracker starts
     at its first keyframe with the coarse stage forced. ``localize_only``: track against the map without adding
     keyframes (the mapper never runs). ``observers``: callables ``f(outcome, system)`` run after every frame in
@@ -107,9 +93,11 @@ class System:
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
         self._wake = threading.Event()
+        self._stepped = threading.Event()  # the mapper finished a unit of work
         self._mapper_error: BaseException | None = None
         self.last_failure: str | None = None
         self._warm = False
+        self._held: list[tuple[float, np.ndarray]] = []  # tracked while the initialisation frames are posed
         self._confirming: list[tuple[float, np.ndarray]] | None = None  # poses tracked since a relocalisation
 
     # -- threads -------------------------------------------------------------------------------------------
@@ -130,6 +118,7 @@ class System:
                 if not self.mapper.step():
                     self._wake.wait(self.cfg.system.mapper_idle_wait_s)
                     self._wake.clear()
+                self._stepped.set()
         except BaseException as e:  # re-raised in the tracker's thread
             self._mapper_error = e
 
@@ -204,7 +193,7 @@ class System:
             observe(out, self)
         return out
 
-    def _track(self, frame, record: bool = True) -> FrameOutcome:
+    def _track(self, frame) -> FrameOutcome:
         snapshot = self.mapper.snapshot
         index, ts = int(frame.index), float(frame.timestamp)
         relocalising = self.state in (LOST, RELOCALISING) and self.cfg.reloc.enabled
@@ -231,10 +220,9 @@ class System:
             m = res.measurements
             self.mapper.report_tracking(m.point_ids[m.found & m.inlier], m.point_ids[m.found & ~m.inlier])
         T = res.T_cw if res.tracked else None
-        if T is not None and record:
-            self.trajectory.append((res.timestamp, se3.inv(T)))
-            self.stats.tracked += 1
-        added = record and self._maybe_add_keyframe(res)
+        if T is not None:
+            self._record([(res.timestamp, se3.inv(T))])
+        added = self._maybe_add_keyframe(res)
         return FrameOutcome(res.frame_index, res.timestamp, self.state, T, res, added)
 
     def _confirm(self, res) -> FrameOutcome:
@@ -250,8 +238,7 @@ class System:
         self._confirming.append((res.timestamp, se3.inv(res.T_cw)))
         if len(self._confirming) < self.cfg.reloc.confirm_frames:
             return FrameOutcome(res.frame_index, res.timestamp, RELOCALISING, None, res)
-        self.trajectory.extend(self._confirming)
-        self.stats.tracked += len(self._confirming)
+        self._record(self._confirming)
         self.stats.relocalisations += 1
         self._confirming = None
         self.state = TrackingState.GOOD
@@ -295,97 +282,31 @@ class System:
             self.mapper.run_until_idle()
         else:
             self._wake.set()
+            if self.mode == RunMode.ASYNC and self.cfg.system.async_waits_for_local_ba:
+                self._wait_for_mapper()
         return True
 
-    # -- initialisation (PTAM §6.1) ----------------------------------------------------------------------
-    def _initialise(self, frame) -> FrameOutcome:
-        index, ts = int(frame.index), float(frame.timestamp)
-        idle = FrameOutcome(index, ts, INITIALISING, None)
-        key, self._key_pressed = self._key_pressed, False
-        pyramid = Pyramid.build(frame.image, self.cfg.image)
-        init = self._init
-        if not init.started:
-            fixed = self.init_frames
-            if key if self.init_mode == InitMode.KEY else (fixed is None or index == fixed[0]):
-                self._start_trails(pyramid, index, ts, None)
-            return idle
-        n = init.advance(pyramid, index, ts)
-        if init.building:
-            built = init.finished()
-            return idle if built is None else self._built(built, index, ts)
-        if n < self.cfg.init.min_trails:
-            self._init_failed(pyramid, index, ts, f"too few trails survive ({n} < {self.cfg.init.min_trails})")
-        elif self._second_keyframe_now(key, index):
-            self.stats.init_attempts += 1
-            init.build(pyramid, index, ts)
-            built = init.finished()  # at once in sync mode; else on a later frame
-            if built is not None:
-                return self._built(built, index, ts)
-        return idle
+    def _wait_for_mapper(self) -> None:
+        """``async`` on a recorded source: the tracker would otherwise run several times faster than real time,
+        far ahead of a map that is not extended yet. It waits until the mapper has integrated the keyframe and
+        adjusted it locally (PTAM §6.3), then runs on beside the global adjustment and the data-association
+        refinement; ``realtime`` (live) never waits."""
+        deadline = time.perf_counter() + self.cfg.system.mapper_wait_max_s
+        while (self.mapper.queue or not self.mapper.recent_converged) and time.perf_counter() < deadline:
+            if self._mapper_error is not None or self._thread is None:
+                return
+            self._stepped.wait(self.cfg.system.mapper_idle_wait_s)
+            self._stepped.clear()
 
-    def _second_keyframe_now(self, key: bool, index: int) -> bool:
-        if self.init_mode == InitMode.KEY:
-            return key
-        if self.init_frames is not None:
-            return index >= self.init_frames[1]
-        f = 0.5 * (self.camera.fx + self.camera.fy)
-        return self._init.trails.median_disparity() >= self.cfg.init.auto_min_disparity_rel_focal * f
-
-    def _start_trails(self, pyramid, index: int, ts: float, reason: str | None) -> None:
-        if reason:
-            log.info("initialisation restarts: %s", reason)
-            self.last_failure = reason
-            self.stats.init_failures.append(reason)
-        n = self._init.start(pyramid, index, ts)
-        if n < self.cfg.init.min_trails:
-            self.last_failure = f"too few corners to start trails ({n} < {self.cfg.init.min_trails})"
-            self._init.stop()
-
-    def _init_failed(self, pyramid, index: int, ts: float, reason: str) -> None:
-        """Auto mode starts over from this frame; fixed frames and key presses wait for their own trigger."""
-        if self.init_mode == InitMode.AUTO and self.init_frames is None:
-            self._start_trails(pyramid, index, ts, reason)
+    def _record(self, poses: list[tuple[float, np.ndarray]]) -> None:
+        """Tracked (timestamp, T_wc) in time order: the trajectory only grows at its end (the viewer and the
+        streamed outputs rely on it), so while the frames seen during initialisation are still being posed the
+        newer ones are held back."""
+        self.stats.tracked += len(poses)
+        if self._init.posing:
+            self._held.extend(poses)
         else:
-            self.last_failure = f"{reason} (frame {index})"
-            self.stats.init_failures.append(reason)
-            self._init.stop()
-
-    def _built(self, built, index: int, ts: float) -> FrameOutcome:
-        """The map exists (or the attempt failed): pose the frames seen since the first keyframe from their
-        trails and resume tracking from the newest."""
-        if built.mapper is None:
-            self._init_failed(self._init.trails.previous, index, ts, built.failure)
-            return FrameOutcome(index, ts, INITIALISING, None)
-        self.mapper = built.mapper
-        log.info("map initialised from frames %d and %d: %d points", built.first[0], built.second[0],
-                 self.mapper.map.n_points_total)  # fmt: skip
-        newest, T_newest = self._init.adopt(built)
-        if newest.index == built.second[0]:
-            T_newest = self.mapper.map.kf_T_cw[1]
-        if T_newest is not None:
-            self.trajectory.append((newest.timestamp, se3.inv(T_newest)))
-            self.stats.tracked += 1
-        self._collect_posed(wait=self.mode == RunMode.SYNC)
-        self._init.stop()
-        T = self.mapper.map.kf_T_cw[1] if T_newest is None else T_newest
-        self.tracker.reset()
-        # A pose from the frame's trails alone is approximate: the next frame runs the enlarged coarse stage.
-        self.tracker.set_pose(T, recovered=newest.index != built.second[0])
-        self.state = TrackingState.GOOD
-        if self.mode != RunMode.SYNC:
-            self._wake.set()
-        tracked = T_newest is not None and newest.index == index
-        return FrameOutcome(index, ts, TrackingState.GOOD, T if tracked else None, None, index == built.second[0])
-
-    def _collect_posed(self, wait: bool = False) -> None:
-        """Poses of the frames seen while the map was built, as the worker finishes them (in timestamp order
-        among the trajectory; PTAM §6.1's frames between the keyframes, optional)."""
-        posed = self._init.posed(wait)
-        if not self.cfg.init.track_frames_between:
-            return
-        for fr, T in posed:
-            bisect.insort(self.trajectory, (fr.timestamp, se3.inv(T)), key=lambda p: p[0])
-        self.stats.tracked += len(posed)
+            self.trajectory.extend(poses)
 
 
 def run_dataset(path, cfg: Config, mode: RunMode | str | None = None, **kwargs) -> System:

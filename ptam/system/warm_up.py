@@ -27,7 +27,7 @@ _DEPTH = 1.0  # the synthetic points sit on a fronto-parallel plane this far awa
 def warm_up(camera: CameraModel, cfg: Config) -> None:
     rng = np.random.default_rng(0)
     noise = cv2.GaussianBlur(rng.random((camera.height, camera.width)), (0, 0), _TEXTURE_BLUR_PX)
-    image = cv2.normalize(noise, None, 0, 255, cv2.NORM_MINMAX).astype(np.uint8)
+    image = (255 * (noise - noise.min()) / np.ptp(noise)).astype(np.uint8)
     pyramid = Pyramid.build(image, cfg.image)
     trails = TrailTracker(cfg.init, cfg.image)
     if trails.start(pyramid) == 0:
