@@ -90,13 +90,21 @@ def _add_eval(sub) -> argparse.ArgumentParser:
     ev.add_argument("estimate", metavar="EST.txt")
     ev.add_argument("--max-dt", type=float, help="association tolerance in seconds (default: eval.max_time_diff_s)")
     ev.add_argument("--se3", action="store_true", help="also report ATE after SE(3) (no scale) alignment")
+    ev.add_argument(
+        "--correct-mm",
+        type=float,
+        help="a pose is correct within this many mm after alignment (default: eval.correct_mm)",
+    )
+    ev.add_argument("--correct-deg", type=float, help="... and within this many degrees (default: eval.correct_deg)")
     return ev
 
 
 def _add_bench(sub) -> argparse.ArgumentParser:
     bench = sub.add_parser("bench", help="measure tracking and bundle-adjustment timings (PTAM Tables 1-2)")
     bench.add_argument("what", nargs="?", default="all", choices=["all", "ba", *BENCHMARKS])
-    bench.add_argument("scene", nargs="?", default="two_wall")
+    bench.add_argument(
+        "scene", nargs="?", help="a scene name or file (default: two_wall; accuracy: suite, its whole scene suite)"
+    )
     return bench
 
 

@@ -6,9 +6,9 @@ from __future__ import annotations
 import pytest
 
 import ptam.synthetic.sequence as sequence
-from ptam.system import core as system
 from ptam.cli import main as cli_main
 from ptam.commands.bench import BENCHMARKS
+from ptam.system import core as system
 
 
 def test_render_threads_and_cache_dir_reach_the_renderer(tiny, tmp_path, monkeypatch):

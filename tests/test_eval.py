@@ -149,7 +149,16 @@ def run_eval(capsys, *argv):
 
 def parse_summary(line):
     fields = dict(kv.split("=") for kv in line.split())
-    assert list(fields) == ["ate_rmse_m", "scale", "matched", "tracked_fraction", "path_length_m"]
+    assert list(fields) == [
+        "ate_rmse_m",
+        "scale",
+        "matched",
+        "tracked_fraction",
+        "path_length_m",
+        "rot_rmse_deg",
+        "correct_fraction",
+        "glitches",
+    ]
     return fields
 
 

@@ -1,8 +1,11 @@
 """``ptam eval GT.txt EST.txt``: ATE after Sim(3) alignment, tracked fraction and scale (PTAM §7.3 compares
-trajectories up to a similarity because a monocular map has no absolute scale).
+trajectories up to a similarity because a monocular map has no absolute scale); rotation RMSE under the same
+alignment, and the correct fraction and glitch frames (``ptam.eval.correctness``: within ``--correct-mm`` and
+``--correct-deg`` after a robust Sim(3) fit).
 
-The last line printed is machine-readable and its format is fixed:
-``ate_rmse_m=<float> scale=<float> matched=<int>/<int> tracked_fraction=<float> path_length_m=<float>``.
+The last line printed is machine-readable and its format is fixed (new keys are only ever appended):
+``ate_rmse_m=<float> scale=<float> matched=<int>/<int> tracked_fraction=<float> path_length_m=<float>
+rot_rmse_deg=<float> correct_fraction=<float> glitches=<int>``.
 """
 
 from __future__ import annotations
@@ -12,16 +15,42 @@ import numpy as np
 from ..errors import PtamError
 from ..eval import associate, ate, pairs_by_time, read_tum, rpe
 from ..eval.ate import MIN_POSES
+from ..eval.correctness import Criteria, correctness, rotation_errors_deg
 
 
 def path_length(xyz: np.ndarray) -> float:
     return float(np.linalg.norm(np.diff(xyz, axis=0), axis=1).sum())
 
 
+def criteria(args, cfg) -> Criteria:
+    """The correctness thresholds: ``--correct-mm`` / ``--correct-deg`` or the ``eval`` config section."""
+    mm = cfg.eval.correct_mm if args.correct_mm is None else args.correct_mm
+    deg = cfg.eval.correct_deg if args.correct_deg is None else args.correct_deg
+    if not (mm > 0 and deg > 0):
+        raise PtamError(f"--correct-mm and --correct-deg must be positive, got {mm} and {deg}")
+    return Criteria(1e-3 * mm, deg, cfg.eval.align_gate_factor, cfg.eval.align_segments)
+
+
+def _report_correctness(T_gt, T_est, n_gt: int, crit: Criteria, R_ate) -> tuple[float, float, int]:
+    """Print rotation error and correctness; (rotation RMSE deg, correct fraction, glitches)."""
+    rot = rotation_errors_deg(T_gt[:, :3, :3], T_est[:, :3, :3], R_ate)
+    rot_rmse = float(np.sqrt(np.mean(rot**2)))
+    print(f"rotation after Sim(3): rmse {rot_rmse:.6g} deg, median {np.median(rot):.6g} deg, max {rot.max():.6g} deg")
+    c = correctness(T_gt, T_est, n_gt, crit)
+    used = int(c.fit.used.sum()) if c.fit is not None else 0
+    print(
+        f"correct (within {1e3 * crit.max_error_m:g} mm and {crit.max_error_deg:g} deg after a robust Sim(3) fit on "
+        f"{used}/{c.matched} poses): {c.correct} of {n_gt} ground-truth poses ({100 * c.correct_fraction:.1f}%); "
+        f"glitches (tracked but wrong): {c.glitches}"
+    )
+    return rot_rmse, c.correct_fraction, c.glitches
+
+
 def main(args, cfg) -> int:
     max_dt = cfg.eval.max_time_diff_s if args.max_dt is None else args.max_dt
     if not max_dt >= 0:
         raise PtamError(f"--max-dt must be non-negative, got {max_dt}")
+    crit = criteria(args, cfg)
     t_gt, T_gt = read_tum(args.groundtruth)
     t_est, T_est = read_tum(args.estimate)
     if len(t_gt) == 0:
@@ -54,6 +83,7 @@ def main(args, cfg) -> int:
             f"ATE after SE(3):  rmse {se3.rmse:.6g} m, median {np.median(se3.errors):.6g} m, "
             f"max {se3.errors.max():.6g} m"
         )
+    rot_rmse, correct_fraction, glitches = _report_correctness(T_gt[ig], T_est[ie], n_gt, crit, sim3.R)
     i, j = pairs_by_time(t_gt[ig], cfg.eval.rpe_delta_s)
     if len(i):
         rel = rpe(T_gt[ig], T_est[ie], i, j, scale=sim3.scale)
@@ -66,6 +96,7 @@ def main(args, cfg) -> int:
 
     print(
         f"ate_rmse_m={sim3.rmse:.9g} scale={sim3.scale:.9g} matched={matched}/{n_gt} "
-        f"tracked_fraction={matched / n_gt:.9g} path_length_m={length:.9g}"
+        f"tracked_fraction={matched / n_gt:.9g} path_length_m={length:.9g} rot_rmse_deg={rot_rmse:.9g} "
+        f"correct_fraction={correct_fraction:.9g} glitches={glitches}"
     )
     return 0

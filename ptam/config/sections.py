@@ -209,6 +209,7 @@ class EvalConfig:
     correct_mm: Annotated[float, Range("(0, inf)")]
     correct_deg: Annotated[float, Range("(0, 180]")]
     align_gate_factor: Annotated[float, Range("(0, inf)")]
+    align_segments: Annotated[int, Range("[1, inf)")]
 
 
 @dataclass(frozen=True)

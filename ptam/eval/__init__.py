@@ -1,7 +1,9 @@
-"""Trajectory evaluation: TUM trajectory files, timestamp association, ATE and RPE."""
+"""Trajectory evaluation: TUM trajectory files, timestamp association, ATE and RPE, rotation error, correct
+fraction and glitch frames."""
 
 from .associate import associate
 from .ate import AteResult, ate
+from .correctness import Correctness, Criteria, correctness
 from .rpe import RpeResult, pairs_by_frames, pairs_by_time, rpe
 from .tum_io import read_tum, write_tum
 
@@ -11,6 +13,9 @@ __all__ = [
     "associate",
     "ate",
     "AteResult",
+    "Criteria",
+    "Correctness",
+    "correctness",
     "rpe",
     "RpeResult",
     "pairs_by_frames",

@@ -40,7 +40,7 @@ from .rectangle import Rectangle, rectangle_from_spec
 from .render import Renderer
 from .render_kernels import intersect_rays
 from .spec import resolve_scene, scene_hash
-from .texture import check_texture
+from .texture import check_texture, image_digest
 from .trajectory import Jitter, KeyPose, Trajectory, look_at, path_length
 
 RENDER_DEFAULTS = {"supersample": 2, "background": 0.0}
@@ -134,6 +134,12 @@ def _trajectory(d: dict, fps: float, where: str) -> Trajectory:
     return Trajectory(poses, jitter, fps)
 
 
+def _texture_files(rects: list[Rectangle], where: str) -> dict[str, str]:
+    """Digest of every image texture's file by rectangle index (empty for procedural scenes)."""
+    digests = ((i, image_digest(r.texture, f"{where}.rectangles[{i}]")) for i, r in enumerate(rects))
+    return {str(i): d for i, d in digests if d is not None}
+
+
 class Scene:
     """A loaded scene. Ground truth: ``timestamps`` (N,), ``poses_T_wc`` (N, 4, 4), ``raycast``."""
 
@@ -145,7 +151,6 @@ class Scene:
         self.name = name
         self.spec = spec
         self.source = source
-        self.hash = scene_hash(spec)
         if "camera" not in spec:
             raise InputError(f"{where}: missing 'camera'")
         self.camera = camera_from_dict(spec["camera"], where=f"{where}.camera")
@@ -161,6 +166,7 @@ class Scene:
         ]
         for i, r in enumerate(self.rectangles):
             check_texture(r.texture, f"{where}.rectangles[{i}]")
+        self.hash = scene_hash(spec, _texture_files(self.rectangles, where))
         self._packed = np.stack([r.packed() for r in self.rectangles])
         self.trajectory = _trajectory(spec, self.fps, where)
         if self.n_frames - 1 > self.trajectory.last_frame:

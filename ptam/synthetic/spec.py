@@ -21,6 +21,9 @@ from ..resources import resource_path
 # Bump when the renderer or texture generator changes what a scene file renders to (invalidates caches).
 RENDER_VERSION = 3
 _MAX_EXTENDS_DEPTH = 8
+# The accuracy suite: desk-scale scenes unlike two_wall (pinhole and radtan lenses, photographs, repetitive
+# and plain surfaces, hand-held jitter, pauses, brightness changes, sensor noise, a 90 degree turn, 15 fps).
+SUITE = ("desk_table", "desk_table_15fps", "desk_bricks", "desk_corner", "desk_closeup")
 
 
 def _bundled_dir() -> Path:
@@ -30,6 +33,11 @@ def _bundled_dir() -> Path:
 def list_scenes() -> list[str]:
     """Names of the bundled scenes (``data/synthetic/*.yaml``)."""
     return sorted(p.stem for p in _bundled_dir().glob("*.yaml"))
+
+
+def suite_scenes() -> list[str]:
+    """The accuracy suite (``ptam bench accuracy suite``), in table order."""
+    return list(SUITE)
 
 
 def locate_scene(name_or_path: str | Path, relative_to: Path | None = None) -> Path:
@@ -82,7 +90,12 @@ def resolve_scene(name_or_path: str | Path) -> tuple[str, dict, Path]:
     return path.stem, d, path
 
 
-def scene_hash(resolved: dict) -> str:
-    """Hex digest keying a rendered sequence: the resolved scene content and the renderer version."""
-    blob = json.dumps({"scene": resolved, "render_version": RENDER_VERSION}, sort_keys=True, default=str)
+def scene_hash(resolved: dict, texture_files: dict[str, str] | None = None) -> str:
+    """Hex digest keying a rendered sequence: the resolved scene content, the renderer version and, for scenes
+    with image textures, the digests of their files (``texture_files``; absent for procedural scenes, so
+    their hashes do not change)."""
+    content: dict = {"scene": resolved, "render_version": RENDER_VERSION}
+    if texture_files:
+        content["texture_files"] = texture_files
+    blob = json.dumps(content, sort_keys=True, default=str)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]

@@ -9,20 +9,33 @@ deviation) so no region is perfectly flat. ``coverage`` is the mean number of sh
 
 ``constant``: one grey level (test scenes with sharp, measurable geometric edges).
 
+``image``: a photograph (``file``: a greyscale image bundled in ``data/synthetic/textures/``, or a path),
+``texel`` metres per texel. ``mode: tile`` (default) repeats the image at one image pixel per texel from
+corner 0 (image row 0 along the rectangle's first edge, image column 0 down its second); ``mode: stretch``
+resamples the whole image onto the rectangle (aspect ratio not kept) at ``texel`` metres per texel. ``grey:
+[low, high]`` maps the image's 0..255 linearly onto low..high (a faded print); default [0, 255].
+
 Everything is drawn from ``numpy.random.default_rng(seed)``, so the same spec gives the same texels.
 """
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import cv2
 import numpy as np
 
 from ..errors import InputError
+from ..resources import resource_path
 
 DEAD_LEAVES_DEFAULTS = {"grey": [20, 235], "coverage": 4.0, "exponent": 3.0, "detail": 0.0}
+IMAGE_DEFAULTS = {"mode": "tile", "grey": [0, 255]}
+IMAGE_MODES = ("tile", "stretch")
+TEXTURE_DIR = "data/synthetic/textures"  # bundled photographs (see its README.md for sources and licences)
+_IMAGE_FULL_SCALE = 255.0  # an 8-bit image's white, mapped onto grey[1]
 _SUBPIXEL_BITS = 4  # fixed-point vertex precision handed to OpenCV's polygon filler
 _BATCH = 65536  # shapes drawn from the generator per round until the coverage is reached
 _ASPECT_MIN = 0.25  # thinnest rectangle / ellipse (minor / major axis)
@@ -54,17 +67,20 @@ def _pair(spec, key, where, lo, hi):
 
 
 def check_texture(spec: dict, where: str) -> dict:
-    """The texture spec with defaults filled in, validated (cheap: nothing is drawn)."""
+    """The texture spec with defaults filled in, validated (cheap: nothing is drawn, an image file is only
+    located)."""
     if not isinstance(spec, dict) or "type" not in spec:
-        raise InputError(f"{where}: texture must be a mapping with a 'type' (dead_leaves or constant)")
+        raise InputError(f"{where}: texture must be a mapping with a 'type' (dead_leaves, constant or image)")
     kind = spec["type"]
     if kind == "constant":
         unknown = set(spec) - {"type", "value"}
         if unknown:
             raise InputError(f"{where}: unknown constant-texture key(s) {', '.join(sorted(unknown))}")
         return {"type": kind, "value": _number(spec, "value", where, 0.0, 255.0)}
+    if kind == "image":
+        return _check_image(spec, where)
     if kind != "dead_leaves":
-        raise InputError(f"{where}: unknown texture type '{kind}' (expected dead_leaves or constant)")
+        raise InputError(f"{where}: unknown texture type '{kind}' (expected dead_leaves, constant or image)")
     spec = {**DEAD_LEAVES_DEFAULTS, **spec}
     unknown = set(spec) - {"type", "seed", "texel", "sizes", *DEAD_LEAVES_DEFAULTS}
     if unknown:
@@ -85,6 +101,47 @@ def check_texture(spec: dict, where: str) -> dict:
     }
 
 
+def image_path(file: str) -> Path:
+    """An image texture's file: a bare name is a bundled texture if there is one; anything else is a path."""
+    p = Path(file)
+    if p.parent == Path("."):
+        try:
+            return resource_path(f"{TEXTURE_DIR}/{file}")
+        except FileNotFoundError:
+            pass
+    return p
+
+
+def _check_image(spec: dict, where: str) -> dict:
+    spec = {**IMAGE_DEFAULTS, **spec}
+    unknown = set(spec) - {"type", "file", "texel", *IMAGE_DEFAULTS}
+    if unknown:
+        raise InputError(f"{where}: unknown image-texture key(s) {', '.join(sorted(unknown))}")
+    file = spec.get("file")
+    if not isinstance(file, str) or not file:
+        raise InputError(f"{where}: image texture needs a 'file' (a bundled texture name or a path)")
+    if not image_path(file).is_file():
+        raise InputError(f"{where}: image texture file '{file}' not found (bundled ones are in {TEXTURE_DIR}/)")
+    if spec["mode"] not in IMAGE_MODES:
+        raise InputError(f"{where}: image texture 'mode' must be one of {', '.join(IMAGE_MODES)}, got {spec['mode']!r}")
+    return {
+        "type": "image",
+        "file": file,
+        "texel": _number(spec, "texel", where, 1e-4, 10.0),
+        "mode": spec["mode"],
+        "grey": _pair(spec, "grey", where, 0.0, 255.0),
+    }
+
+
+def image_digest(spec: dict, where: str) -> str | None:
+    """SHA-256 of an image texture's file (part of the scene hash, so an edited image renders anew); None for
+    procedural textures."""
+    spec = check_texture(spec, where)
+    if spec["type"] != "image":
+        return None
+    return hashlib.sha256(image_path(spec["file"]).read_bytes()).hexdigest()
+
+
 def make_texture(spec: dict, width_m: float, height_m: float, where: str) -> tuple[np.ndarray, float]:
     """Texels (rows along the rectangle's second axis) as float32 grey levels, and the texel size in metres."""
     spec = check_texture(spec, where)
@@ -93,7 +150,24 @@ def make_texture(spec: dict, width_m: float, height_m: float, where: str) -> tup
     W, H = math.ceil(width_m / spec["texel"]), math.ceil(height_m / spec["texel"])
     if W * H > _MAX_TEXELS:
         raise InputError(f"{where}: texture of {W}x{H} texels is too large; raise 'texel'")
+    if spec["type"] == "image":
+        return _image(spec, W, H, where), spec["texel"]
     return _dead_leaves(spec, W, H), spec["texel"]
+
+
+def _image(spec: dict, W: int, H: int, where: str) -> np.ndarray:
+    """W x H texels of the image, tiled from its top-left pixel or resampled (area-averaged when shrunk)."""
+    img = cv2.imread(str(image_path(spec["file"])), cv2.IMREAD_GRAYSCALE)
+    if img is None:
+        raise InputError(f"{where}: cannot read image texture '{spec['file']}'")
+    if spec["mode"] == "stretch":
+        shrink = img.size > W * H
+        tex = cv2.resize(img, (W, H), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_CUBIC)
+    else:
+        reps = (math.ceil(H / img.shape[0]), math.ceil(W / img.shape[1]))
+        tex = np.tile(img, reps)[:H, :W]
+    lo, hi = spec["grey"]
+    return (np.float32(lo) + tex.astype(np.float32) * np.float32((hi - lo) / _IMAGE_FULL_SCALE)).astype(np.float32)
 
 
 def _radii(u, lo, hi, exponent):

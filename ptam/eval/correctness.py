@@ -1,0 +1,156 @@
+"""Per-frame correctness of an estimated trajectory: rotation error, correct fraction and glitch frames.
+
+ATE (``ate.py``) is an RMSE over the frames a system reports; it hides how many frames were right and punishes
+a few wild frames as much as a steady drift. These metrics count frames instead:
+
+- **rotation error**: the angle of ``R_gtᵀ·R·R_est`` per frame, where R is the rotation of a Sim(3)
+  alignment (orientations are compared in the ground-truth frame). ``rot_rmse_deg`` reports its RMSE under
+  the ATE's own alignment, so ATE and rotation RMSE describe the same aligned trajectory.
+- **correct**: a ground-truth frame whose associated estimate, after Sim(3) alignment with the map scale
+  fitted, lies within ``max_error_m`` of the true position and ``max_error_deg`` of the true orientation. The
+  correct fraction divides by every ground-truth frame, so untracked (and, in realtime mode, dropped)
+  frames count against it.
+- **glitch**: a frame the system reported as tracked whose aligned error exceeds either threshold (a wrong
+  pose presented as right, the failure an AR overlay shows). correct + glitches = matched frames.
+
+Robust alignment (``fit_sim3``): a few gross outliers (a tracker that jumped for a handful of frames) drag a
+least-squares Umeyama fit and would make good frames look wrong; a map that broke part-way (tracked on, but
+wrong) drags it so far that no frame passes any threshold. So the alignment is a small maximum-consensus
+search. Candidates are Umeyama fits of the positions: on all matched frames, and on each part of the
+trajectory cut into 2, 3, …, ``segments`` contiguous parts (by frame order). A candidate's support is the frames
+it puts within ``gate_factor`` times both thresholds (position and orientation); the candidate with the most
+support wins (ties: the earlier one, so the fit on all comes first) and is re-fitted once on its support.
+Without outliers the fit on all wins and its re-fit changes nothing; with a few outliers the re-fit leaves them
+out; with a broken map the largest set of frames one similarity makes right is what is judged correct (if a
+map breaks into two self-consistent parts, the larger part counts as right and the other as glitches). Parts
+with fewer than ``MIN_POSES`` frames or a single repeated position give no candidate, and the re-fit is
+skipped when the support is such a set (the winning candidate then stands).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geometry import so3
+from ..geometry.sim3 import umeyama
+from .ate import MIN_POSES
+
+
+@dataclass(frozen=True)
+class Criteria:
+    """When a frame is correct; from the ``eval`` config section (``correct_mm``, ``correct_deg``,
+    ``align_gate_factor``, ``align_segments``), converted to metres by the caller."""
+
+    max_error_m: float
+    max_error_deg: float
+    gate_factor: float  # a candidate alignment's support: frames within gate_factor × both thresholds
+    segments: int  # candidate fits also on the trajectory cut into 2..segments parts; 1: the fit on all only
+
+
+@dataclass(frozen=True)
+class Sim3Fit:
+    """gt ≈ scale·R·est + t; ``used``: the frames (matched,) the final fit was made on."""
+
+    scale: float
+    R: np.ndarray
+    t: np.ndarray
+    used: np.ndarray
+
+    def apply(self, est_xyz: np.ndarray) -> np.ndarray:
+        return self.scale * np.asarray(est_xyz, dtype=np.float64) @ self.R.T + self.t
+
+
+@dataclass(frozen=True)
+class Correctness:
+    n_groundtruth: int
+    matched: int
+    correct: int
+    glitches: int
+    fit: Sim3Fit | None  # None when fewer than MIN_POSES frames matched (then correct = glitches = 0)
+    position_errors_m: np.ndarray  # (matched,) after the robust fit; NaN without a fit
+    rotation_errors_deg: np.ndarray  # (matched,) after the robust fit; NaN without a fit
+
+    @property
+    def correct_fraction(self) -> float:
+        return self.correct / max(self.n_groundtruth, 1)
+
+
+def _degenerate(est_xyz: np.ndarray) -> bool:
+    return len(est_xyz) < MIN_POSES or not np.any(est_xyz != est_xyz[0])
+
+
+def _parts(n: int, segments: int) -> list[tuple[int, int]]:
+    """[a, b) frame ranges of the trajectory cut into 2, 3, …, ``segments`` contiguous parts."""
+    out = []
+    for k in range(2, segments + 1):
+        bounds = np.linspace(0, n, k + 1).astype(int)
+        out += list(zip(bounds[:-1], bounds[1:], strict=True))
+    return out
+
+
+def fit_sim3(T_gt: np.ndarray, T_est: np.ndarray, criteria: Criteria) -> Sim3Fit:
+    """Sim(3) alignment of associated camera-to-world poses (N, 4, 4) in frame order, N ≥ MIN_POSES positions not
+    all one point: the candidate fit supported by the most frames, re-fitted once on those (module docstring)."""
+    T_gt = np.asarray(T_gt, dtype=np.float64)
+    T_est = np.asarray(T_est, dtype=np.float64)
+    gt_xyz, est_xyz = T_gt[:, :3, 3], T_est[:, :3, 3]
+    n = len(gt_xyz)
+    gate_m, gate_deg = criteria.gate_factor * criteria.max_error_m, criteria.gate_factor * criteria.max_error_deg
+
+    def support(fit) -> np.ndarray:
+        s, R, t = fit
+        near = np.linalg.norm(gt_xyz - (s * est_xyz @ R.T + t), axis=1) <= gate_m
+        return near & (rotation_errors_deg(T_gt[:, :3, :3], T_est[:, :3, :3], R) <= gate_deg)
+
+    best, fitted = umeyama(est_xyz, gt_xyz, with_scale=True), np.ones(n, dtype=bool)
+    within = support(best)
+    for a, b in _parts(n, criteria.segments):
+        if _degenerate(est_xyz[a:b]):
+            continue
+        fit = umeyama(est_xyz[a:b], gt_xyz[a:b], with_scale=True)
+        w = support(fit)
+        if w.sum() > within.sum():
+            best, within = fit, w
+            fitted = np.zeros(n, dtype=bool)
+            fitted[a:b] = True
+    if within.all() or _degenerate(est_xyz[within]):  # nothing better to re-fit on
+        return Sim3Fit(float(best[0]), best[1], best[2], fitted)
+    s, R, t = umeyama(est_xyz[within], gt_xyz[within], with_scale=True)
+    return Sim3Fit(float(s), R, t, within)
+
+
+def rotation_errors_deg(R_gt: np.ndarray, R_est: np.ndarray, R_align: np.ndarray) -> np.ndarray:
+    """Angle in degrees (N,) between true camera orientations R_gt (N, 3, 3) (camera-to-world) and estimated
+    ones R_est mapped into the ground-truth frame by the alignment's rotation: |log(R_gtᵀ·R_align·R_est)|."""
+    D = np.swapaxes(np.asarray(R_gt, dtype=np.float64), -1, -2) @ np.asarray(R_align) @ np.asarray(R_est)
+    return np.degrees(np.linalg.norm(so3.log(D), axis=-1))
+
+
+def rot_rmse_deg(T_gt: np.ndarray, T_est: np.ndarray, R_align: np.ndarray) -> float:
+    """RMSE in degrees of the rotation errors of associated camera-to-world poses (M, 4, 4) under an alignment
+    rotation (the ATE's: ``ate(...).R``); NaN for no poses."""
+    T_gt = np.asarray(T_gt, dtype=np.float64).reshape(-1, 4, 4)
+    if len(T_gt) == 0:
+        return float("nan")
+    err = rotation_errors_deg(
+        T_gt[:, :3, :3], np.asarray(T_est, dtype=np.float64).reshape(-1, 4, 4)[:, :3, :3], R_align
+    )
+    return float(np.sqrt(np.mean(err * err)))
+
+
+def correctness(T_gt: np.ndarray, T_est: np.ndarray, n_groundtruth: int, criteria: Criteria) -> Correctness:
+    """Correct and glitch frames of associated camera-to-world poses T_gt, T_est (M, 4, 4) out of
+    ``n_groundtruth`` ground-truth frames."""
+    T_gt = np.asarray(T_gt, dtype=np.float64).reshape(-1, 4, 4)
+    T_est = np.asarray(T_est, dtype=np.float64).reshape(-1, 4, 4)
+    m = len(T_gt)
+    if _degenerate(T_est[:, :3, 3]):
+        nan = np.full(m, np.nan)
+        return Correctness(n_groundtruth, m, 0, 0, None, nan, nan)
+    fit = fit_sim3(T_gt, T_est, criteria)
+    pos = np.linalg.norm(T_gt[:, :3, 3] - fit.apply(T_est[:, :3, 3]), axis=1)
+    rot = rotation_errors_deg(T_gt[:, :3, :3], T_est[:, :3, :3], fit.R)
+    n_ok = int(np.count_nonzero((pos <= criteria.max_error_m) & (rot <= criteria.max_error_deg)))
+    return Correctness(n_groundtruth, m, n_ok, m - n_ok, fit, pos, rot)
