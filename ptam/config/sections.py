@@ -139,6 +139,7 @@ class RelocConfig:
     suspend_when_rapid: bool
     rapid_rotation_deg: Annotated[float, Range("[0, 180]")]
     confirm_frames: Annotated[int, Range("[1, inf)")]
+    confirm_inlier_fraction: Annotated[float, Range("[0, 1]")]
 
 
 @dataclass(frozen=True)
@@ -168,6 +169,7 @@ class InitConfig:
     essential_threshold_px: Annotated[float, Range("(0, inf)")]
     ransac_confidence: Annotated[float, Range("(0, 1)")]
     ransac_seed: Annotated[int, Range("[0, 2147483647]")]
+    gric_min_sigma_px: Annotated[float, Range("(0, inf)")]
     gric_lambda3: Annotated[float, Range("(0, inf)")]
     inlier_sigmas: Annotated[float, Range("(0, inf)")]
     triangulation_max_error_px: Annotated[float, Range("(0, inf)")]

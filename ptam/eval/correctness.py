@@ -17,9 +17,10 @@ Robust alignment (``fit_sim3``): a few gross outliers (a tracker that jumped for
 least-squares Umeyama fit and would make good frames look wrong; a map that broke part-way (tracked on, but
 wrong) drags it so far that no frame passes any threshold. So the alignment is a small maximum-consensus
 search. Candidates are Umeyama fits of the positions: on all matched frames, and on each part of the
-trajectory cut into 2, 3, …, ``segments`` contiguous parts (by frame order). A candidate's support is the frames
-it puts within ``gate_factor`` times both thresholds (position and orientation); the candidate with the most
-support wins (ties: the earlier one, so the fit on all comes first) and is re-fitted once on its support.
+trajectory cut into 2, 3, …, ``segments`` contiguous parts (by frame order). Each candidate is re-fitted once on
+its support (the frames it puts within ``gate_factor`` times both thresholds, position and orientation), and the
+candidate that then puts the most frames within the thresholds themselves wins (ties: the earlier one, so the
+fit on all comes first): a loose gate finds the inliers, the judged thresholds pick the fit.
 Without outliers the fit on all wins and its re-fit changes nothing; with a few outliers the re-fit leaves them
 out; with a broken map the largest set of frames one similarity makes right is what is judged correct (if a
 map breaks into two self-consistent parts, the larger part counts as right and the other as glitches). Parts
@@ -99,26 +100,32 @@ def fit_sim3(T_gt: np.ndarray, T_est: np.ndarray, criteria: Criteria) -> Sim3Fit
     n = len(gt_xyz)
     gate_m, gate_deg = criteria.gate_factor * criteria.max_error_m, criteria.gate_factor * criteria.max_error_deg
 
-    def support(fit) -> np.ndarray:
+    def within(fit, m: float, deg: float) -> np.ndarray:
         s, R, t = fit
-        near = np.linalg.norm(gt_xyz - (s * est_xyz @ R.T + t), axis=1) <= gate_m
-        return near & (rotation_errors_deg(T_gt[:, :3, :3], T_est[:, :3, :3], R) <= gate_deg)
+        near = np.linalg.norm(gt_xyz - (s * est_xyz @ R.T + t), axis=1) <= m
+        return near & (rotation_errors_deg(T_gt[:, :3, :3], T_est[:, :3, :3], R) <= deg)
 
-    best, fitted = umeyama(est_xyz, gt_xyz, with_scale=True), np.ones(n, dtype=bool)
-    within = support(best)
+    best: Sim3Fit | None = None
+    best_correct = -1
+    candidates = [np.ones(n, dtype=bool)]
     for a, b in _parts(n, criteria.segments):
-        if _degenerate(est_xyz[a:b]):
+        part = np.zeros(n, dtype=bool)
+        part[a:b] = True
+        candidates.append(part)
+    for part in candidates:
+        if _degenerate(est_xyz[part]):
             continue
-        fit = umeyama(est_xyz[a:b], gt_xyz[a:b], with_scale=True)
-        w = support(fit)
-        if w.sum() > within.sum():
-            best, within = fit, w
-            fitted = np.zeros(n, dtype=bool)
-            fitted[a:b] = True
-    if within.all() or _degenerate(est_xyz[within]):  # nothing better to re-fit on
-        return Sim3Fit(float(best[0]), best[1], best[2], fitted)
-    s, R, t = umeyama(est_xyz[within], gt_xyz[within], with_scale=True)
-    return Sim3Fit(float(s), R, t, within)
+        fit = umeyama(est_xyz[part], gt_xyz[part], with_scale=True)
+        support = within(fit, gate_m, gate_deg)
+        used = part
+        if not _degenerate(est_xyz[support]):  # re-fitted once on the frames it supports
+            fit, used = umeyama(est_xyz[support], gt_xyz[support], with_scale=True), support
+        # Candidates are judged by what is judged in the end: frames within the thresholds after the re-fit.
+        correct = int(within(fit, criteria.max_error_m, criteria.max_error_deg).sum())
+        if correct > best_correct:
+            best, best_correct = Sim3Fit(float(fit[0]), fit[1], fit[2], used), correct
+    assert best is not None  # the fit on all frames is never degenerate here
+    return best
 
 
 def rotation_errors_deg(R_gt: np.ndarray, R_est: np.ndarray, R_align: np.ndarray) -> np.ndarray:

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..geometry import se3, so3
 from ..geometry.triangulation import triangulate_two_view
-from .gric import gric, sampson_sq, transfer_sq
+from .gric import gric, homography_sampson_sq, sampson_sq
 
 _USAC = {
     "default": cv2.USAC_DEFAULT,
@@ -41,6 +41,9 @@ class TwoViewResult:
     inliers: np.ndarray  # (N,) bool over the input matches
     median_parallax_deg: float
     model: str  # "E" or "H", the GRIC choice
+
+
+_CHI2_1_MEDIAN = 0.4549  # the median of a χ² variable with one degree of freedom
 
 
 def _triangulate(T: np.ndarray, r0: np.ndarray, r1: np.ndarray):
@@ -82,18 +85,7 @@ def estimate_two_view(camera, xy0: np.ndarray, xy1: np.ndarray, init_cfg) -> Two
     r1 = camera.unproject(xy1)
     f = 0.5 * (camera.fx + camera.fy)
     sigma = c.essential_threshold_px / f
-    method = _USAC[c.essential_method]
-    cv2.setRNGSeed(c.ransac_seed)  # deterministic runs (sync-mode tests compare trajectories bit for bit)
-    E, mask_e = cv2.findEssentialMat(r0, r1, np.eye(3), method=method, prob=c.ransac_confidence, threshold=sigma)
-    H, mask_h = cv2.findHomography(r0, r1, method, sigma, maxIters=10000, confidence=c.ransac_confidence)
-    cands = {}
-    if E is not None and E.shape == (3, 3):
-        cands["E"] = gric(sampson_sq(E, r0, r1), sigma, "E", c.gric_lambda3)
-    if H is not None and H.shape == (3, 3):
-        cands["H"] = gric(transfer_sq(H, r0, r1), sigma, "H", c.gric_lambda3)
-    if not cands:
-        raise InitFailure("neither an essential matrix nor a homography fits the trails")
-    model = min(cands, key=lambda k: cands[k])
+    model, E, mask_e, H, mask_h = select_model(r0, r1, sigma, c, f)
     cap = c.gric_lambda3 * 2.0
     if model == "E":
         _, R, t, _ = cv2.recoverPose(E, r0, r1, np.eye(3), mask=mask_e.astype(np.uint8).copy())
@@ -128,3 +120,25 @@ def estimate_two_view(camera, xy0: np.ndarray, xy1: np.ndarray, init_cfg) -> Two
             f"{model}): the camera rotated more than it translated"
         )
     return TwoViewResult(T, X0, inl, parallax, model)
+
+
+def select_model(r0: np.ndarray, r1: np.ndarray, sigma: float, c, f: float) -> tuple:
+    """E (five-point) and H fitted robustly to unit-plane matches, the one with the lower GRIC chosen
+    (Gauglitz §6.1): (model, E, E's inlier mask, H, H's inlier mask). ``sigma``: the RANSAC threshold (unit
+    plane); ``f``: the focal length in pixels."""
+    method = _USAC[c.essential_method]
+    cv2.setRNGSeed(c.ransac_seed)  # deterministic runs (sync-mode tests compare trajectories bit for bit)
+    E, mask_e = cv2.findEssentialMat(r0, r1, np.eye(3), method=method, prob=c.ransac_confidence, threshold=sigma)
+    H, mask_h = cv2.findHomography(r0, r1, method, sigma, maxIters=10000, confidence=c.ransac_confidence)
+    cands = {}
+    if E is not None and E.shape == (3, 3):
+        e2 = sampson_sq(E, r0, r1)
+        # GRIC needs the noise σ (Torr 1998; Gauglitz §4.2 estimates it by EM): the general model fits planar
+        # and 3-D scenes alike, so the median of its residuals, over the median of χ²₁, estimates it.
+        sigma = max(float(np.sqrt(np.median(e2) / _CHI2_1_MEDIAN)), c.gric_min_sigma_px / f) if len(e2) else sigma
+        cands["E"] = gric(e2, sigma, "E", c.gric_lambda3)
+    if H is not None and H.shape == (3, 3):
+        cands["H"] = gric(homography_sampson_sq(H, r0, r1), sigma, "H", c.gric_lambda3)
+    if not cands:
+        raise InitFailure("neither an essential matrix nor a homography fits the trails")
+    return min(cands, key=lambda k: cands[k]), E, mask_e, H, mask_h

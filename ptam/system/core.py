@@ -82,7 +82,7 @@ class System(Initialisation):
         self.tracker = Tracker(camera, cfg)
         self.relocaliser = Relocaliser(camera, cfg)
         self.mapper = MapMaker(camera, cfg, map_)
-        self._init = StereoStart(camera, cfg, background=self.mode != RunMode.SYNC)
+        self._init = StereoStart(camera, cfg, background=self._build_in_background())
         self.state = INITIALISING
         self.observers: list = []
         if self.mapper.initialised:
@@ -99,6 +99,13 @@ class System(Initialisation):
         self._warm = False
         self._held: list[tuple[float, np.ndarray]] = []  # tracked while the initialisation frames are posed
         self._confirming: list[tuple[float, np.ndarray]] | None = None  # poses tracked since a relocalisation
+
+    def _build_in_background(self) -> bool:
+        """The first map is built beside the tracker where frames keep coming (``realtime``); a file replayed in
+        ``async`` mode waits for it as it waits for the mapper (else it would race ahead on trails alone)."""
+        return self.mode == RunMode.REALTIME or (
+            self.mode == RunMode.ASYNC and not self.cfg.system.async_waits_for_local_ba
+        )
 
     # -- threads -------------------------------------------------------------------------------------------
     def start(self) -> System:
@@ -169,7 +176,7 @@ class System(Initialisation):
         self._stop.clear()
         self.mapper = MapMaker(self.camera, self.cfg)
         self.tracker.reset()
-        self._init = StereoStart(self.camera, self.cfg, background=self.mode != RunMode.SYNC)
+        self._init = StereoStart(self.camera, self.cfg, background=self._build_in_background())
         self.state = INITIALISING
         self.trajectory = []
         self._key_pressed = False
@@ -227,11 +234,12 @@ class System(Initialisation):
 
     def _confirm(self, res) -> FrameOutcome:
         """A relocalisation (Agility §7) counts only once the tracker confirms it: ``reloc.confirm_frames``
-        frames in a row tracked with good quality from the relocalised pose. Until then the frames are not
-        reported tracked (a wrong pose is worse than a lost frame); then they all are. A frame that is not good
-        sends the system back to relocalising."""
+        frames in a row tracked with good quality from the relocalised pose, and most of the patches searched
+        kept as Tukey inliers (texture is found anywhere at a wrong pose, but does not fit it). Until then the
+        frames are not reported tracked (a wrong pose is worse than a lost frame); then they all are. A frame
+        that is not good sends the system back to relocalising."""
         assert self._confirming is not None
-        if res.quality != Quality.GOOD:
+        if res.quality != Quality.GOOD or res.inlier_fraction <= self.cfg.reloc.confirm_inlier_fraction:
             self._confirming = None
             self.state = RELOCALISING
             return FrameOutcome(res.frame_index, res.timestamp, RELOCALISING, None, res)

@@ -114,8 +114,10 @@ def pose_irls(
 ):
     """Robust pose from world points X (n, 3) measured at level-0 pixels meas (n, 2) with 1/σ inv_sigma (n,).
 
-    ``override_sigma_sq`` > 0 replaces the median-based c² in iterations after ``override_after`` (PTAM code's
-    fixed sigma); 0 keeps the median throughout (PTAM §5.4). Returns the pose and the last weights (n,).
+    ``override_sigma_sq`` > 0 caps the median-based c² in iterations after ``override_after`` (PTAM code's fixed
+    sigma, which PTAM uses instead of the median: the stricter of the two is kept, so many wrong matches cannot
+    inflate the median and clean data keeps its tight cut); 0 keeps the median throughout (PTAM §5.4). Returns
+    the pose and the last weights (n,).
     """
     n = X.shape[0]
     T = T_cw.copy()
@@ -145,10 +147,9 @@ def pose_irls(
                 m += 1
         if m == 0:
             break
+        c2 = tukey_sigma_sq(err_sq[:m], min_sigma)
         if override_sigma_sq > 0.0 and it > override_after:
-            c2 = override_sigma_sq
-        else:
-            c2 = tukey_sigma_sq(err_sq[:m], min_sigma)
+            c2 = min(c2, override_sigma_sq)
         for k in range(n):
             w[k] = 0.0
             if valid[k]:

@@ -11,14 +11,16 @@ import numpy as np
 from .pose_kernels import pose_irls
 
 
-def update_pose(cam_params, tracker_cfg, T_cw, X, xy, level, coarse: bool):
+def update_pose(cam_params, tracker_cfg, T_cw, X, xy, level, coarse: bool, fixed_sigma: bool = True):
     """New T_cw and Tukey weights (n,) from world points X (n, 3) found at level-0 pixels ``xy`` on ``level``.
 
     The coarse stage re-linearises at every iteration (PTAM code); the fine stage every
-    ``relinearise_every`` iterations (PTAM §6.5).
+    ``relinearise_every`` iterations (PTAM §6.5). With ``tracker.tukey_override_enabled`` the last iterations
+    use PTAM code's fixed Tukey σ, unless ``fixed_sigma`` is False: during rapid motion (Agility §8) blur spreads
+    every match, and only the median-based σ of §5.4 adapts to it.
     """
     cfg = tracker_cfg
-    if cfg.tukey_override_enabled:
+    if cfg.tukey_override_enabled and fixed_sigma:
         override = cfg.tukey_override_sigma_sq_coarse if coarse else cfg.tukey_override_sigma_sq_fine
     else:
         override = 0.0

@@ -93,6 +93,12 @@ class TrackResult:
         return self.n_coarse_found + self.n_fine_found
 
     @property
+    def inlier_fraction(self) -> float:
+        """Patches that kept a Tukey weight in the final pose, of those attempted."""
+        m = self.measurements
+        return float(np.count_nonzero(m.found & m.inlier)) / max(self.n_attempted, 1)
+
+    @property
     def tracked(self) -> bool:
         """The pose is usable: quality good or poor (PTAM §5.6)."""
         return self.quality != Quality.BAD

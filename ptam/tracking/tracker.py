@@ -67,6 +67,7 @@ class Tracker:
         self.frames_since_keyframe = 0
         self.scene_depth: tuple[float | None, float] = (None, 0.0)
         self._force_coarse = False
+        self._rapid = False
         self._rng = np.random.default_rng(self.tcfg.shuffle_seed)
 
     def set_pose(self, T_cw: np.ndarray, recovered: bool = False) -> None:
@@ -76,6 +77,8 @@ class Tracker:
         self.motion.reset()
         self.rotation.reset()  # the previous small image belongs to another pose
         self._force_coarse = bool(recovered)
+        if recovered:  # a recovered pose earns trust before it may make keyframes (PTAM §6.2's 20 frames)
+            self.frames_since_keyframe = 0
 
     def keyframe_added(self) -> None:
         """The mapper accepted this frame as a keyframe: restart the frames-since-keyframe count."""
@@ -105,6 +108,7 @@ class Tracker:
         frames = min(gap, self.tcfg.motion_max_gap_frames)
         T = self.motion.predict(T_start, rotation, self.cfg.rotation.keep_axial_velocity, frames)
         force, self._force_coarse = self._force_coarse or late, False
+        self._rapid = self._prior_is_rapid()
         batch = Batch()
         did_coarse = False
         n_visible = 0
@@ -139,7 +143,8 @@ class Tracker:
         clock.lap(SEARCH)
         did_coarse = bool(m.found.sum() >= cfg.coarse_min_points)
         if did_coarse:
-            T, _ = update_pose(self._cam, cfg, T, snapshot.X[ids[m.found]], m.xy[m.found], level[m.found], coarse=True)
+            X, xy = snapshot.X[ids[m.found]], m.xy[m.found]
+            T, _ = update_pose(self._cam, cfg, T, X, xy, level[m.found], coarse=True, fixed_sigma=not self._rapid)
         clock.lap(POSE)
         return T, did_coarse
 
@@ -167,7 +172,7 @@ class Tracker:
         found, xy = batch.found(), batch.xy()
         if found.any():
             X = snapshot.X[batch.ids()[found]]
-            T, w = update_pose(self._cam, cfg, T, X, xy[found], batch.level()[found], coarse=False)
+            T, w = update_pose(self._cam, cfg, T, X, xy[found], batch.level()[found], False, not self._rapid)
             batch.weights[found] = w
         return T
 
@@ -222,8 +227,7 @@ class Tracker:
         if depth_mean is not None:
             self.motion.update(T_start, T, depth_mean, frames)
         reloc = self.cfg.reloc
-        prior_deg = np.degrees(np.linalg.norm(self.motion.prior[3:]))
-        rapid = reloc.suspend_when_rapid and prior_deg > reloc.rapid_rotation_deg
+        rapid = reloc.suspend_when_rapid and self._rapid
         nearest, dist = _nearest_keyframe(snapshot, T)
         # PTAM code (IsDistanceToNearestKeyFrameExcessive): a pose far beyond every keyframe, in units of the
         # initial stereo baseline, is not trusted however many patches matched.
@@ -254,6 +258,10 @@ class Tracker:
             keyframe=kf,
             rapid_motion=bool(rapid),
         )
+
+    def _prior_is_rapid(self) -> bool:
+        """The prior rotates the camera faster than ``reloc.rapid_rotation_deg`` a frame (Agility §8)."""
+        return bool(np.degrees(np.linalg.norm(self.motion.prior[3:])) > self.cfg.reloc.rapid_rotation_deg)
 
     def _update_scene_depth(self, snapshot, T, meas) -> tuple[float | None, float]:
         """Mean scene depth of the found points at the final pose (PTAM code, end of TrackMap); before any frame

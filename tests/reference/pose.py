@@ -43,10 +43,9 @@ def pose_irls_ref(
         e2 = (r**2).sum(axis=1) * inv_sigma**2
         if not valid.any():
             break
+        c2 = tukey_sigma_sq_ref(e2[valid], min_sigma)
         if override_sigma_sq > 0 and it > override_after:
-            c2 = override_sigma_sq
-        else:
-            c2 = tukey_sigma_sq_ref(e2[valid], min_sigma)
+            c2 = min(c2, override_sigma_sq)
         w = np.where(valid & (e2 <= c2), (1.0 - e2 / c2) ** 2, 0.0)
         H, g = normal_equations_ref(J, r, inv_sigma, w)
         mu = np.linalg.solve(H + prior * np.eye(6), g)
