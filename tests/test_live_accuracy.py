@@ -8,7 +8,7 @@ import pytest
 
 from ptam.bench.accuracy import criteria
 from ptam.camera import load_camera
-from ptam.capture import open_dataset
+from ptam.capture import Frame, open_dataset
 from ptam.eval.score import score_trajectory
 from ptam.geometry import se3
 from ptam.system import System, run_dataset
@@ -63,3 +63,27 @@ def test_a_pan_into_unmapped_space_is_lost_not_wrong(cfg):
     assert s.glitches == 0
     assert s.correct_fraction > 0.5  # the mapped start and the return to the front wall
     assert system.stats.relocalisations >= 1
+
+
+@pytest.mark.slow
+def test_a_still_camera_waiting_to_initialise_keeps_bounded_memory(cfg):
+    """Auto initialisation with a camera that never moves: trails are followed for ever, but only the last
+    ``init.max_history_frames`` frames are remembered (by their trails, no image), so memory stays flat."""
+    import tracemalloc
+
+    d = sequence("two_wall_short")
+    camera = load_camera(d / "camera.yaml")
+    with open_dataset(d, capture().default_fps) as src:
+        frame = next(iter(src))
+    small = cfg.replace(**{"init.max_history_frames": 50})
+    with System(camera, small, mode=RunMode.SYNC) as system:
+        for i in range(60):
+            system.process(Frame(i, i / 30.0, frame.image))
+        tracemalloc.start()
+        before = tracemalloc.get_traced_memory()[0]
+        for i in range(60, 460):
+            system.process(Frame(i, i / 30.0, frame.image))
+        grown = tracemalloc.get_traced_memory()[0] - before
+        tracemalloc.stop()
+    assert not system.mapper.initialised and len(system._init.history) == 50
+    assert grown < 2e6  # bytes over 400 more frames (an image is 300 kB): nothing accumulates per frame
