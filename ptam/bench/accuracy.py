@@ -69,8 +69,7 @@ class AccuracyRun:
 
 
 def criteria(cfg) -> Criteria:
-    e = cfg.eval
-    return Criteria(e.correct_mm / _MM, e.correct_deg, e.align_gate_factor, e.align_segments)
+    return Criteria.from_config(cfg.eval)
 
 
 def _replay(seq: Path, cfg, mode: RunMode):

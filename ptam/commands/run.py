@@ -30,6 +30,7 @@ from ..capture import find_calibration, open_source
 from ..capture.keys import TerminalKeys
 from ..capture.realtime import RealtimeFeed
 from ..errors import InputError, PtamError
+from ..eval.correctness import Criteria
 from ..eval.score import score_trajectory
 from ..image.pyramid import Pyramid
 from ..map.map_file import load_map
@@ -135,17 +136,23 @@ def _open_recording(args, cfg):
     return recording
 
 
-def _score(dataset: str | None, system: System, embedded: bool) -> None:
+def _score(dataset: str | None, system: System, embedded: bool, cfg) -> None:
     gt = Path(dataset) / "groundtruth.txt" if dataset else None
     if gt is None or not gt.is_file():
         return
-    r = score_trajectory(gt, system.trajectory)
+    try:
+        r = score_trajectory(gt, system.trajectory, criteria=Criteria.from_config(cfg.eval))
+    except PtamError as e:  # a ground truth that cannot score the run does not fail a run that worked
+        print(f"ptam: not scored against {gt}: {e}", file=sys.stderr)
+        return
     if not np.isfinite(r.ate_rmse_m):
         return
     paper = f" (PTAM §7.3 reports {PAPER_ATE_MM:g} mm on its two-wall sequence)" if embedded else ""
     print(
         f"ATE against {gt}: {1e3 * r.ate_rmse_m:.2f} mm RMSE after Sim(3) alignment over {r.matched}/"
-        f"{r.n_groundtruth} poses, path {r.path_length_m:.2f} m{paper}"
+        f"{r.n_groundtruth} poses, path {r.path_length_m:.2f} m{paper}; correct "
+        f"{100 * r.correct_fraction:.1f}% (within {cfg.eval.correct_mm:g} mm and {cfg.eval.correct_deg:g} deg), "
+        f"glitch frames {r.glitches}"
     )
 
 
@@ -253,7 +260,7 @@ def _main(args, cfg, stop: _StopRequest) -> int:
         recording = _open_recording(args, cfg)
         try:
             system, code = _run(args, cfg, source, camera, mode, init_frames, loaded, recording, live, stop)
-            _score(dataset, system, embedded)
+            _score(dataset, system, embedded, cfg)
             if recording is not None and recording.server is not None and code == 0:
                 _serve_until_interrupted(recording, stop)
         finally:

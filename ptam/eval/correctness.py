@@ -34,9 +34,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..config import EvalConfig
 from ..geometry import so3
 from ..geometry.sim3 import umeyama
 from .ate import MIN_POSES
+
+_MM_PER_M = 1e3
 
 
 @dataclass(frozen=True)
@@ -48,6 +51,11 @@ class Criteria:
     max_error_deg: float
     gate_factor: float  # a candidate alignment's support: frames within gate_factor × both thresholds
     segments: int  # candidate fits also on the trajectory cut into 2..segments parts; 1: the fit on all only
+
+    @classmethod
+    def from_config(cls, eval_cfg: EvalConfig) -> Criteria:
+        e = eval_cfg
+        return cls(e.correct_mm / _MM_PER_M, e.correct_deg, e.align_gate_factor, e.align_segments)
 
 
 @dataclass(frozen=True)
