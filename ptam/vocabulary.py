@@ -95,6 +95,21 @@ class LensModel(StrEnum):
     RADTAN = "radtan"
 
 
+class PoseModel(StrEnum):
+    """The model chosen for a frame's motion (Gauglitz et al. §4.2, §6.2): a general pose against the 3-D map,
+    or a rotation about the previous keyframe's centre (a panorama, no new depth)."""
+
+    GENERAL = "R|t"
+    ROTATION = "R|0"
+
+
+class GroupKind(StrEnum):
+    """Keyframe groups (Gauglitz et al. §3.2): linked by 3-D poses, or by rotations about one centre."""
+
+    SFM = "sfm"
+    PANORAMA = "panorama"
+
+
 class DistortionModel(StrEnum):
     """Lens models a synthetic calibration sequence can be rendered with."""
 

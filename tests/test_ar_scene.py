@@ -99,6 +99,7 @@ def _snapshot(X, T_cw, first=_FIRST_KEYFRAME):
     return SimpleNamespace(
         X=X,
         good_point_indices=np.arange(len(X)),
+        ray=np.zeros(len(X), bool),  # no panorama features: every point has a depth
         n_points=len(X),
         n_keyframes=1,
         kf_T_cw=T_cw[None],
@@ -135,3 +136,20 @@ def test_plane_is_refitted_when_the_map_grows_and_content_stays_anchored(cfg):
 def test_unknown_scene_is_a_clear_error(cfg):
     with pytest.raises(InputError, match="unknown AR scene 'teapot'"):
         make_scene("teapot", cfg.ar)
+
+
+def test_panorama_rays_do_not_move_the_plane(cfg):
+    """Rays (Gauglitz et al. §3.2) sit at a guessed depth: a panorama of a wall that outnumbers the desk's points
+    must not become the dominant plane."""
+    rng = np.random.default_rng(1)
+    plane = ArPlane(cfg.init, cfg.ar.plane_refresh_growth)
+    X0 = np.concatenate([rng.uniform(-0.5, 0.5, (300, 2)), np.zeros((300, 1))], axis=1)
+    T_cw = se3.inv(_looking_at(np.array([0.0, 0.0, 1.0]), np.zeros(3)))
+    assert not plane.maybe_refresh(_snapshot(X0, T_cw))
+    desk = np.concatenate([rng.uniform(-0.8, 0.8, (400, 2)), np.zeros((400, 1))], axis=1)
+    wall = np.concatenate([rng.uniform(-1, 1, (900, 1)), np.full((900, 1), 1.0), rng.uniform(0, 1, (900, 1))], axis=1)
+    snap = _snapshot(np.concatenate([desk, wall]), T_cw)
+    snap.ray = np.arange(len(snap.X)) >= len(desk)
+    assert plane.maybe_refresh(snap)
+    Xp = desk @ plane.T_pw[:3, :3].T + plane.T_pw[:3, 3]
+    assert np.abs(Xp[:, 2]).max() < 1e-9  # the desk, not the panorama's wall

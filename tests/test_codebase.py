@@ -26,6 +26,7 @@ LAYERS = {
     "capture": 4,
     "map": 5,
     "patch": 6,
+    "edgelet": 6,
     "tracking": 7,
     "mapping": 7,
     "synthetic": 7,

@@ -46,7 +46,7 @@ def test_pose_irls_matches_reference_and_rejects_outliers(name):
     T_true, X, meas, inv_sigma, bad = _problem(cam, rng, 600, 0.3, 0.2)
     T0 = se3.exp(np.array([0.02, 0.01, -0.03, 0.01, 0.015, -0.01])) @ T_true
     for relin, override in ((4, 0.0), (1, 16.0)):
-        args = (T0, X, meas, inv_sigma, 10, relin, 0.4, 100.0, 5, override)
+        args = (T0, X, np.ones(len(X)), meas, inv_sigma, 10, relin, 0.4, 100.0, 5, override, np.zeros(3), -1.0)
         T, w = pose_irls(cam.kernel_params(), *args)
         T_r, w_r = pose_irls_ref(cam, *args)
         assert np.allclose(T, T_r, atol=1e-9)
@@ -55,3 +55,28 @@ def test_pose_irls_matches_reference_and_rejects_outliers(name):
         assert np.linalg.norm(err[:3]) < 2e-3  # metres, with 20% gross outliers
         assert np.degrees(np.linalg.norm(err[3:])) < 0.05
         assert (w[bad] == 0).mean() > 0.9 and (w[~bad] > 0).mean() > 0.95
+
+
+@pytest.mark.parametrize("name", list(CAMERAS))
+def test_rays_fix_rotation_only_and_the_centre_stays_in_its_ball(name):
+    """Gauglitz et al. §3.2, §6.2: panorama features are rays (w = 0), which constrain the rotation and leave the
+    centre where it was; [R|t ≤ t_max] keeps the centre within t_max of the reference."""
+    cam = CAMERAS[name]
+    rng = np.random.default_rng(7)
+    T_true, X, meas, inv_sigma, bad = _problem(cam, rng, 400, 0.3, 0.1)
+    C_true = se3.inv(T_true)[:3, 3]
+    D = X - C_true  # rays from the true centre, scaled by their depth: the scale does not matter at w = 0
+    T0 = se3.exp(np.array([0.0, 0.0, 0.0, 0.02, -0.015, 0.01])) @ T_true  # rotated about the true centre
+    args = (T0, D, np.zeros(len(X)), meas, inv_sigma, 10, 1, 0.4, 100.0, 5, 16.0, np.zeros(3), -1.0)
+    T, w = pose_irls(cam.kernel_params(), *args)
+    T_r, w_r = pose_irls_ref(cam, *args)
+    assert np.allclose(T, T_r, atol=1e-9) and np.allclose(w, w_r, atol=1e-7)
+    err = se3.log(T @ se3.inv(T_true))
+    assert np.degrees(np.linalg.norm(err[3:])) < 0.05
+    assert np.linalg.norm(se3.inv(T)[:3, 3] - C_true) < 1e-9  # rays carry no translation
+    c_ref = C_true + np.array([0.3, 0.0, 0.0])
+    args = (T0, X, np.ones(len(X)), meas, inv_sigma, 10, 1, 0.4, 100.0, 5, 16.0, c_ref, 0.1)
+    T, _ = pose_irls(cam.kernel_params(), *args)
+    T_r, _ = pose_irls_ref(cam, *args)
+    assert np.allclose(T, T_r, atol=1e-9)
+    assert np.linalg.norm(se3.inv(T)[:3, 3] - c_ref) == pytest.approx(0.1, abs=1e-9)

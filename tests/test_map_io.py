@@ -133,6 +133,13 @@ def test_broken_map_files_are_refused(saved, tmp_path):
     np.savez(tmp_path / "future.npz", **{**arrays, "version": np.array(VERSION + 1)})
     with pytest.raises(InputError, match=f"format version {VERSION + 1}; this ptam reads version {VERSION}"):
         load_map(tmp_path / "future.npz", image_cfg)
+    v1 = {k: v for k, v in arrays.items() if k not in ("ray", "kf_panorama")}
+    np.savez(tmp_path / "v1.npz", **{**v1, "version": np.array(1)})  # before panoramas: no rays, no panorama kfs
+    old = load_map(tmp_path / "v1.npz", image_cfg).map.snapshot()
+    assert old.n_points == load_map(out / "map.npz", image_cfg).map.snapshot().n_points and not old.ray.any()
+    np.savez(tmp_path / "v2_without_rays.npz", **{**v1, "version": np.array(VERSION)})
+    with pytest.raises(InputError, match="incomplete: no 'kf_panorama'"):
+        load_map(tmp_path / "v2_without_rays.npz", image_cfg)
     np.savez(tmp_path / "bad_index.npz", **{**arrays, "meas_pt": arrays["meas_pt"] + len(arrays["X"])})
     with pytest.raises(InputError, match="inconsistent: map: point index out of range"):
         load_map(tmp_path / "bad_index.npz", image_cfg)

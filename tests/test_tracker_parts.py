@@ -48,6 +48,10 @@ def test_tracking_quality_states_and_lost():
     assert q.lost
     assert q.assess(att, att) == "good" and not q.lost
     assert q.assess(np.zeros(4, int), np.zeros(4, int)) == "bad"
+    # Gauglitz et al. §4.4: 2 of 5 patches found is PTAM-good, but too few inliers to mean a pose.
+    few = np.array([5, 0, 0, 0])
+    assert q.assess(few, np.array([2, 0, 0, 0])) == "good"
+    assert q.assess(few, np.array([2, 0, 0, 0]), too_few_inliers=True) == "bad"
 
 
 def test_patch_seen_from_its_source_keyframe_has_identity_template_warp():

@@ -61,7 +61,8 @@ class ArPlane:
             return False
         self.fitted_points = n
         c = self.init_cfg
-        X = snapshot.X[snapshot.good_point_indices]
+        good = snapshot.good_point_indices
+        X = snapshot.X[good[~snapshot.ray[good]]]  # panorama rays have no depth (Gauglitz et al. §3.2)
         plane = fit_dominant_plane(X, c.plane_inlier_distance, c.plane_ransac_iterations, c.plane_seed)
         if plane is None or plane.inliers.sum() < 3:
             return False

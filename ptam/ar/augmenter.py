@@ -2,12 +2,23 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..geometry import se3
 from .ar_plane import ArPlane
+from .drawlist import DrawList
 from .overlay import OverlayRenderer
 from .scenes import make_scene
+
+
+@dataclass(frozen=True)
+class ArStep:
+    """A scene's frame, ready to draw: the plane→camera pose and what the scene draws."""
+
+    T_cp: np.ndarray
+    drawlist: DrawList
 
 
 class Augmenter:
@@ -25,12 +36,20 @@ class Augmenter:
         """Switch to a new scene ``name`` (started afresh: the eyes' grid fades again, the game's score restarts)."""
         self.scene = make_scene(name, self.ar_cfg)
 
-    def augment(self, image: np.ndarray, T_cw: np.ndarray, timestamp: float, snapshot=None) -> np.ndarray:
-        """BGR uint8 frame with the scene drawn for world→camera pose ``T_cw``; ``snapshot`` (the map) lets the
-        plane refresh as the map grows."""
+    def advance(self, T_cw: np.ndarray, timestamp: float, snapshot=None) -> ArStep:
+        """The scene's next frame for world→camera pose ``T_cw``; ``snapshot`` (the map) lets the plane refresh
+        as the map grows. Every tracked frame advances the scene, drawn or not: its state counts frames (the
+        eyes turn so far per frame, the grid fades and a target is hit after so many frames)."""
         self.plane.maybe_refresh(snapshot)
         T_cp = np.asarray(T_cw, np.float64) @ se3.inv(self.plane.T_pw)
         dt = 0.0 if self._last_timestamp is None else float(timestamp) - self._last_timestamp
         self._last_timestamp = float(timestamp)
-        dl = self.scene.update(se3.inv(T_cp), dt)
-        return self.renderer.render(image, T_cp, dl)
+        return ArStep(T_cp, self.scene.update(se3.inv(T_cp), dt))
+
+    def draw(self, image: np.ndarray, step: ArStep) -> np.ndarray:
+        """BGR uint8 frame: ``image`` with ``step`` drawn over it."""
+        return self.renderer.render(image, step.T_cp, step.drawlist)
+
+    def augment(self, image: np.ndarray, T_cw: np.ndarray, timestamp: float, snapshot=None) -> np.ndarray:
+        """BGR uint8 frame with the scene's next frame drawn for world→camera pose ``T_cw``."""
+        return self.draw(image, self.advance(T_cw, timestamp, snapshot))

@@ -9,6 +9,11 @@ When the buffer is full — the worker is slower than the tracker for ``ar.queue
 layer that writes a video makes the tracker wait for a free slot, so the video stays drop-free (one frame per
 tracked frame); a layer without a video drops its oldest frame instead and never blocks tracking.
 
+Drawing is the worker's main cost, and it competes with the tracker for the cores and the GIL, so a frame is drawn
+only when someone looks at it: every frame when a video is written, else only the frames a view (the viewer)
+:meth:`ArView.wants` — those it has time and room for (a layer without views draws every frame, for ``latest``).
+The scene still advances every frame (``Augmenter.advance``).
+
 Frames seen while the system initialises are kept (the last ``ar.init_buffer_frames``): when stereo
 initialisation succeeds, the system tracks the frames between the two keyframes retroactively (their poses go
 to its trajectory), and the layer augments them then, before the frame that completed initialisation — so the
@@ -21,6 +26,7 @@ import threading
 import time
 from collections import deque
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
@@ -37,13 +43,24 @@ def frame_image(frame) -> np.ndarray:
     return frame.colour if frame.colour is not None else frame.image
 
 
+class ArView(Protocol):
+    """Where augmented frames are shown (a viewer). Both calls run in the AR worker's thread and must not block."""
+
+    def wants(self, index: int, timestamp: float) -> bool:
+        """Whether to draw frame ``index`` for this view; asked, in frame order, only of frames nothing else
+        needs drawn (no video is written)."""
+
+    def show(self, index: int, timestamp: float, bgr: np.ndarray) -> None:
+        """Frame ``index`` as drawn: a new BGR uint8 image, the view's to keep."""
+
+
 class ArLayer:
     """Observer ``f(outcome, system)``; ``close()`` (or a ``with`` block) flushes the buffer and the video.
 
-    ``latest``: (frame index, timestamp, BGR image) of the newest augmented frame; ``listeners``: callables
-    ``f(index, timestamp, bgr)`` run in the worker thread after each frame (a viewer: they must not block);
-    ``fire()`` and ``set_scene(name)``: key presses, called from any thread and applied by the worker before
-    its next frame (the scene is only ever touched in the worker's thread).
+    ``latest``: (frame index, timestamp, BGR image) of the newest augmented frame; ``listeners``: the views
+    (:class:`ArView`) shown every drawn frame; ``undrawn``: frames advanced but not drawn, as no view wanted
+    them; ``fire()`` and ``set_scene(name)``: key presses, called from any thread and applied by the worker
+    before its next frame (the scene is only ever touched in the worker's thread).
     """
 
     def __init__(
@@ -60,11 +77,12 @@ class ArLayer:
         fps = cfg.capture.default_fps if fps is None else fps
         self.writer = open_video_writer(video_path, camera.size, fps) if video_path else None
         self.video_path = video_path
-        self.listeners: list = []
+        self.listeners: list[ArView] = []
         self.latest: tuple[int, float, np.ndarray] | None = None
         self.frames_rendered = 0
         self.frames_written = 0
         self.dropped = 0
+        self.undrawn = 0
         self.render_ms: list[float] = []
         self._pending: deque = deque(maxlen=max(int(cfg.ar.init_buffer_frames), 0))
         self._items: deque = deque()
@@ -150,21 +168,30 @@ class ArLayer:
                     self.augmenter.scene.fire()
                 if next_scene is not None:
                     self.augmenter.set_scene(next_scene)
-                t0 = time.perf_counter()
-                bgr = self.augmenter.augment(image, T_cw, timestamp, snapshot)
-                self.render_ms.append(1e3 * (time.perf_counter() - t0))
-                self.frames_rendered += 1
-                if self.writer is not None:
-                    self.writer.write(bgr)
-                    self.frames_written += 1
-                self.latest = (index, timestamp, bgr)
-                for listener in self.listeners:
-                    listener(index, timestamp, bgr)
+                self._frame(image, T_cw, index, timestamp, snapshot)
         except BaseException as e:  # re-raised in the tracker's thread at the next frame or at close()
             with self._cond:
                 self._error = e
                 self._items.clear()
                 self._cond.notify_all()
+
+    def _frame(self, image: np.ndarray, T_cw: np.ndarray, index: int, timestamp: float, snapshot) -> None:
+        step = self.augmenter.advance(T_cw, timestamp, snapshot)
+        views = self.listeners
+        # Every view is asked (a list, not a short-circuiting generator): each one paces itself.
+        if self.writer is None and views and not any([view.wants(index, timestamp) for view in views]):
+            self.undrawn += 1
+            return
+        t0 = time.perf_counter()
+        bgr = self.augmenter.draw(image, step)
+        self.render_ms.append(1e3 * (time.perf_counter() - t0))
+        self.frames_rendered += 1
+        if self.writer is not None:
+            self.writer.write(bgr)
+            self.frames_written += 1
+        self.latest = (index, timestamp, bgr)
+        for view in views:
+            view.show(index, timestamp, bgr)
 
     # -- shutdown ------------------------------------------------------------------------------------------
     def close(self) -> None:

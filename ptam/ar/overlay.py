@@ -77,7 +77,8 @@ class OverlayRenderer:
     def render(self, image: np.ndarray, T_cp: np.ndarray, dl: DrawList) -> np.ndarray:
         """The frame (grey (H, W) or BGR (H, W, 3) uint8) with the overlay, as a new BGR uint8 image."""
         img = cv2.cvtColor(image, cv2.COLOR_GRAY2BGR) if image.ndim == 2 else image.copy()
-        self.zbuf.fill(np.inf)
+        if len(dl.spheres) or len(dl.decals):  # only they read the z-buffer; clearing it writes 8 bytes a pixel
+            self.zbuf.fill(np.inf)
         self.last_grid = None
         if dl.grid_alpha > 0.0:
             self._draw_grid(img, T_cp, min(dl.grid_alpha, 1.0))

@@ -7,10 +7,10 @@ enqueues). A warm-up frame excludes numba compilation. Wall-clock time is the fi
 shown next to it because on a loaded machine the wall clock also counts time spent waiting for a core. The
 video encoder's cost per frame is shown apart: it runs in the same worker thread but is not rendering.
 
-Then what the AR view costs the tracker: the same frames tracked again (sync) with a viewer recording to a
-temporary .rrd, once without AR and once per AR scene shown in it (the AR worker's frames logged as
-``camera/augmented`` by the viewer's thread, as in ``ptam run``); the tracker's median ms per frame for each, and
-the frames the viewer or the AR worker had no time for.
+Then what the AR view costs the tracker: the same frames tracked again (sync) without a viewer, then with a viewer
+recording to a temporary .rrd, once without AR and once per AR scene shown in it (the AR worker's frames logged as
+``camera/augmented``, as in ``ptam run``: drawn at most ``viewer.ar_max_fps`` times a second); the tracker's median
+ms per frame for each, the augmented frames drawn, and the frames the viewer or the AR worker had no time for.
 """
 
 from __future__ import annotations
@@ -109,19 +109,20 @@ def run_ar_benchmark(cfg, scene: str = "two_wall", out=print, frames: int = 200)
     return {**result, "scenes": rows, "encode_ms": encode, "frames": len(kept), "viewer": viewer_rows}
 
 
-def _track_with_viewer(cfg, seq: Path, frames: int, scene: str | None) -> dict:
-    """Track the first ``frames`` frames (sync) with a viewer recording to a temporary .rrd and, if ``scene``,
-    the AR worker feeding it augmented frames; the tracker's ms per frame and what was not shown."""
+def _track_with_viewer(cfg, seq: Path, frames: int, viewer: bool, scene: str | None) -> dict:
+    """Track the first ``frames`` frames (sync), with a viewer recording to a temporary .rrd if ``viewer`` and, if
+    ``scene``, the AR worker showing augmented frames in it; the tracker's ms per frame and what was shown."""
     camera = load_camera(seq / "camera.yaml")
     ms = []
     with tempfile.TemporaryDirectory() as tmp:
-        recording = open_recording(cfg.viewer, rrd=str(Path(tmp) / "bench.rrd"))
-        viewer = Viewer(recording.stream, camera, cfg, augmented=scene is not None)
+        recording = open_recording(cfg.viewer, rrd=str(Path(tmp) / "bench.rrd")) if viewer else None
+        view = Viewer(recording.stream, camera, cfg, augmented=scene is not None) if viewer else None
         with open_dataset(seq, cfg.capture.default_fps) as src, System(camera, cfg, mode=RunMode.SYNC) as system:
-            system.observers.append(viewer)
+            if view is not None:
+                system.observers.append(view)
             layer = attach(system, scene, fps=src.fps) if scene is not None else None
             if layer is not None:
-                layer.listeners.append(viewer.augmented)
+                layer.listeners.append(view.augmented)
             try:
                 for frame in src:
                     if frame.index >= frames:
@@ -132,23 +133,35 @@ def _track_with_viewer(cfg, seq: Path, frames: int, scene: str | None) -> dict:
             finally:
                 if layer is not None:
                     layer.close()
-                viewer.close(system)
-                recording.close()
-    ar_dropped = (layer.dropped + viewer.ar_dropped) if layer is not None else 0
+                if view is not None:
+                    view.close(system)
+                    recording.close()
     return dict(
-        median=float(np.median(ms)), p95=float(np.percentile(ms, 95)), dropped=viewer.dropped, ar_dropped=ar_dropped
+        median=float(np.median(ms)),
+        p95=float(np.percentile(ms, 95)),
+        dropped=view.dropped if view is not None else 0,
+        ar_drawn=layer.frames_rendered if layer is not None else 0,
+        ar_dropped=(layer.dropped + view.ar_dropped) if layer is not None else 0,
     )
 
 
 def _viewer_rows(cfg, seq: Path, frames: int, out) -> dict:
-    """The tracker's median ms with the viewer recording, without the AR view and with each scene's."""
-    out("tracker ms per frame (sync) with the viewer recording to an .rrd, without and with the AR view")
-    out(f"{'AR view':<10}{'median (ms)':>13}{'p95 (ms)':>10}{'frames not shown':>18}{'AR frames not shown':>21}")
+    """The tracker's median ms without a viewer, then with the viewer recording, without the AR view and with
+    each scene's."""
+    out(
+        "tracker ms per frame (sync) without a viewer, and with the viewer recording to an .rrd without and with "
+        f"the AR view (at most viewer.ar_max_fps={cfg.viewer.ar_max_fps:g} augmented frames a second)"
+    )
+    out(
+        f"{'viewer':<8}{'AR view':<9}{'median (ms)':>12}{'p95 (ms)':>10}{'frames not shown':>18}"
+        f"{'AR frames drawn':>17}{'AR frames not shown':>21}"
+    )
     rows = {}
-    for scene in (None, *dict.fromkeys((cfg.ar.scene, ArScene.GAME))):
-        if scene == ArScene.OFF:
-            continue
-        name = str(scene or ArScene.OFF)
-        r = rows[name] = _track_with_viewer(cfg, seq, frames, scene)
-        out(f"{name:<10}{r['median']:>13.2f}{r['p95']:>10.2f}{r['dropped']:>18d}{r['ar_dropped']:>21d}")
+    scenes = [s for s in dict.fromkeys((cfg.ar.scene, ArScene.GAME)) if s != ArScene.OFF]
+    for name, viewer, scene in (("none", False, None), ("off", True, None), *((str(s), True, s) for s in scenes)):
+        r = rows[name] = _track_with_viewer(cfg, seq, frames, viewer, scene)
+        out(
+            f"{'rrd' if viewer else 'none':<8}{str(scene or ArScene.OFF):<9}{r['median']:>12.2f}{r['p95']:>10.2f}"
+            f"{r['dropped']:>18d}{r['ar_drawn']:>17d}{r['ar_dropped']:>21d}"
+        )
     return rows

@@ -284,7 +284,8 @@ def _ar_scene(args, cfg, viewing: bool) -> str | None:
 
 def _attach_observers(args, cfg, system: System, camera, recording, fps: float):
     """The viewer (when recording) and the AR worker (when shown or written): both observe off this thread. The
-    viewer's ``augmented`` is the AR worker's listener: augmented frames go straight to the viewer's queue."""
+    viewer's ``augmented`` is the AR worker's view: it asks for the frames the viewer has time for (at most
+    ``viewer.ar_max_fps`` a second unless ``--ar-video`` has every frame drawn), which go straight to its queue."""
     scene = _ar_scene(args, cfg, recording is not None)
     shown = recording is not None and scene not in (None, ArScene.OFF)
     viewer = None

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..map.groups import keyframe_groups
+from ..vocabulary import GroupKind
+
 
 def print_summary(system, mode: str, dropped: int | None, viewer=None, checkpoints: int = 0) -> None:
     """Frames, tracked %, lost events, relocalisations, keyframes, points; median / p95 tracking ms, bundle
@@ -12,6 +15,7 @@ def print_summary(system, mode: str, dropped: int | None, viewer=None, checkpoin
     s = system.stats
     snap = system.mapper.snapshot
     kfs = snap.n_keyframes if snap is not None else 0
+    panoramas = [g for g in keyframe_groups(snap) if g.kind == GroupKind.PANORAMA] if kfs else []
     pts = snap.n_points if snap is not None else 0
     ms = np.asarray(s.track_ms) if s.track_ms else np.zeros(1)
     ba = system.mapper.stats
@@ -19,6 +23,12 @@ def print_summary(system, mode: str, dropped: int | None, viewer=None, checkpoin
     print(
         f"frames {s.frames}  tracked {s.tracked} ({tracked:.1f}%)  lost events {s.lost_events}  "
         f"relocalisations {s.relocalisations}  keyframes {kfs}  points {pts}"
+        + (
+            f"  (panorama: {sum(len(g.keyframes) - 1 for g in panoramas)} keyframes in {len(panoramas)} groups, "
+            f"{int(np.count_nonzero(snap.ray & ~snap.bad))} rays)"
+            if panoramas
+            else ""
+        )
     )
     line = (
         f"tracking ms median {np.median(ms):.1f}  p95 {np.percentile(ms, 95):.1f}  "

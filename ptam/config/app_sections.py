@@ -68,6 +68,7 @@ class ViewerConfig:
     server_memory_limit: str
     jpeg_quality: Annotated[int, Range("[0, 100]")]
     ar_image_lossless: bool
+    ar_max_fps: Annotated[float, Range("[0, inf)")]
     thumbnail_level: Annotated[int, Range("[0, inf)")]
     frustum_depth: Annotated[float, Range("(0, inf)")]
     camera_frustum_depth: Annotated[float, Range("(0, inf)")]

@@ -19,9 +19,22 @@ from typing import Annotated
 
 from ..vocabulary import EssentialMethod, RunMode, SearchLevelRule
 from .app_sections import ArConfig, CalibrateConfig, SynthCalibrationConfig, ViewerConfig
+from .edgelet_section import EdgeletConfig
 from .interval import Range
+from .model_section import ModelSelectionConfig
+from .normals_section import NormalsConfig
 
-__all__ = ["ArConfig", "CalibrateConfig", "Config", "Range", "SynthCalibrationConfig", "ViewerConfig"]
+__all__ = [
+    "ArConfig",
+    "CalibrateConfig",
+    "Config",
+    "EdgeletConfig",
+    "ModelSelectionConfig",
+    "NormalsConfig",
+    "Range",
+    "SynthCalibrationConfig",
+    "ViewerConfig",
+]
 
 
 @dataclass(frozen=True)
@@ -121,6 +134,7 @@ class InitConfig:
     max_trails: Annotated[int, Range("[1, inf)")]
     trail_half_patch: Annotated[int, Range("[1, inf)")]
     trail_search_radius_px: Annotated[int, Range("[1, inf)")]
+    trail_zero_mean: bool
     trail_max_ssd: Annotated[int, Range("[0, inf)")]
     trail_backward_tolerance_px2: Annotated[int, Range("[0, inf)")]
     min_trails: Annotated[int, Range("[0, inf)")]
@@ -235,6 +249,9 @@ class Config:
     synth_calibration: SynthCalibrationConfig
     viewer: ViewerConfig
     ar: ArConfig
+    model_selection: ModelSelectionConfig
+    edgelets: EdgeletConfig
+    normals: NormalsConfig
 
     def replace(self, **changes: str) -> Config:
         """A copy with ``section.key`` values changed, e.g. ``cfg.replace(**{"tracker.max_patches": 500})``."""

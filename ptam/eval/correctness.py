@@ -26,6 +26,11 @@ out; with a broken map the largest set of frames one similarity makes right is w
 map breaks into two self-consistent parts, the larger part counts as right and the other as glitches). Parts
 with fewer than ``MIN_POSES`` frames or a single repeated position give no candidate, and the re-fit is
 skipped when the support is such a set (the winning candidate then stands).
+
+Positions alone leave the alignment's rotation undetermined when they lie on a line or at one point, which is
+what a camera that mostly rotates in place gives (a panorama, Gauglitz et al. TVCG 2013). So every part also
+gives an orientation-anchored candidate: the rotation is the chordal mean of R_gt·R_estᵀ over its frames, and
+scale and translation are then the least-squares fit of the positions. Both kinds compete on the same terms.
 """
 
 from __future__ import annotations
@@ -120,20 +125,42 @@ def fit_sim3(T_gt: np.ndarray, T_est: np.ndarray, criteria: Criteria) -> Sim3Fit
         part = np.zeros(n, dtype=bool)
         part[a:b] = True
         candidates.append(part)
+
+    def positions(sel):
+        return umeyama(est_xyz[sel], gt_xyz[sel], with_scale=True)
+
+    def orientations(sel):
+        return orientation_fit(T_gt[sel], T_est[sel])
+
     for part in candidates:
         if _degenerate(est_xyz[part]):
             continue
-        fit = umeyama(est_xyz[part], gt_xyz[part], with_scale=True)
-        support = within(fit, gate_m, gate_deg)
-        used = part
-        if not _degenerate(est_xyz[support]):  # re-fitted once on the frames it supports
-            fit, used = umeyama(est_xyz[support], gt_xyz[support], with_scale=True), support
-        # Candidates are judged by what is judged in the end: frames within the thresholds after the re-fit.
-        correct = int(within(fit, criteria.max_error_m, criteria.max_error_deg).sum())
-        if correct > best_correct:
-            best, best_correct = Sim3Fit(float(fit[0]), fit[1], fit[2], used), correct
+        for method in (positions, orientations):
+            fit = method(part)
+            support = within(fit, gate_m, gate_deg)
+            used = part
+            if not _degenerate(est_xyz[support]):  # re-fitted once on the frames it supports
+                fit, used = method(support), support
+            # Candidates are judged by what is judged in the end: frames within the thresholds after the re-fit.
+            correct = int(within(fit, criteria.max_error_m, criteria.max_error_deg).sum())
+            if correct > best_correct:
+                best, best_correct = Sim3Fit(float(fit[0]), fit[1], fit[2], used), correct
     assert best is not None  # the fit on all frames is never degenerate here
     return best
+
+
+def orientation_fit(T_gt: np.ndarray, T_est: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """(s, R, t) with R the chordal L2 mean of R_gt·R_estᵀ (camera-to-world poses (N, 4, 4)), then s and t the
+    least-squares fit of gt ≈ s·R·est + t; positions that do not spread give s = 1."""
+    M = np.einsum("nij,nkj->ik", T_gt[:, :3, :3], T_est[:, :3, :3])
+    U, _, Vt = np.linalg.svd(M)
+    R = U @ np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))]) @ Vt
+    gt, est = T_gt[:, :3, 3], T_est[:, :3, 3]
+    xs = (est - est.mean(axis=0)) @ R.T
+    xd = gt - gt.mean(axis=0)
+    var = float((xs * xs).sum())
+    s = float((xs * xd).sum() / var) if var > 0 and (xs * xd).sum() > 0 else 1.0
+    return s, R, gt.mean(axis=0) - s * R @ est.mean(axis=0)
 
 
 def rotation_errors_deg(R_gt: np.ndarray, R_est: np.ndarray, R_align: np.ndarray) -> np.ndarray:

@@ -26,6 +26,7 @@ class KeyFrame:
     scene_depth_mean: float
     scene_depth_sigma: float
     timestamp: float = 0.0
+    panorama: bool = False  # Gauglitz et al. §4.3: added under rotation-only motion, at its SfM neighbour's centre
 
     @staticmethod
     def depth_stats(depths: np.ndarray) -> tuple[float, float]:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import PtamError
+from .edgelet_store import EdgeletStore
 from .keyframe import KeyFrame
 from .snapshot import MapSnapshot, camera_centres
 
@@ -22,6 +23,7 @@ _POINT_FIELDS = {
     "source_level": (np.int8, ()),
     "source_xy": (np.float64, (2,)),
     "bad": (np.bool_, ()),
+    "ray": (np.bool_, ()),
 }
 _MEAS_FIELDS = {
     "meas_kf": (np.int32, ()),
@@ -97,6 +99,7 @@ class Map:
         self._kf_images: list[np.ndarray] = []
         self._points = _Columns(_POINT_FIELDS)
         self._meas = _Columns(_MEAS_FIELDS)
+        self.edgelets = EdgeletStore(_Columns)  # Agility §4: read through its views, mutate through Map
         self.version = 0
         self._snapshot: MapSnapshot | None = None
 
@@ -162,8 +165,10 @@ class Map:
         """All points ever added, bad ones included (the length of the point arrays)."""
         return self._points.n
 
-    def add_points(self, X, normal, source_kf, source_level, source_xy) -> np.ndarray:
-        """Append points; ``normal`` is the unit patch normal in the world frame. Returns their indices."""
+    def add_points(self, X, normal, source_kf, source_level, source_xy, ray=False) -> np.ndarray:
+        """Append points; ``normal`` is the unit patch normal in the world frame. ``ray``: panorama features
+        (Gauglitz et al. §3.2), rays from their source keyframe's centre whose depth is unknown; X is a point on
+        the ray at the keyframe's scene depth, for drawing and visibility. Returns their indices."""
         X = np.asarray(X, dtype=np.float64)
         if X.ndim != 2:
             raise PtamError(f"map: X must have shape (M, 3), got {X.shape}")
@@ -175,6 +180,7 @@ class Map:
             source_level=_rows("source_level", source_level, n, (), np.int8),
             source_xy=_rows("source_xy", source_xy, n, (2,), np.float64),
             bad=np.zeros(n, bool),
+            ray=np.broadcast_to(np.asarray(ray, dtype=bool), (n,)).copy(),
         )
         self._check_indices("source keyframe", values["source_kf"], self.n_keyframes)
         idx = self._points.append(**values)
@@ -186,6 +192,12 @@ class Map:
         self._points.data["X"][idx] = _rows("X", X, len(idx), (3,), np.float64)
         self._changed()
 
+    def set_normals(self, indices, normal) -> None:
+        """Replace the unit patch normals (world frame) of points ``indices`` (Gauglitz et al. §5.4 estimates)."""
+        idx = self._check_indices("point", indices, self._points.n)
+        self._points.data["normal"][idx] = _rows("normal", normal, len(idx), (3,), np.float64)
+        self._changed()
+
     def transform(self, T_new_old: np.ndarray, scale: float = 1.0) -> None:
         """Move the whole map to new world coordinates X_new = T_new_old·(scale·X_old): points, normals and
         keyframe poses together (PTAM code ``ApplyGlobalTransformationToMap`` / ``ApplyGlobalScaleToMap``)."""
@@ -194,6 +206,7 @@ class Map:
         P = self._points
         P.data["X"][: P.n] = scale * P.data["X"][: P.n] @ R.T + t
         P.data["normal"][: P.n] = P.data["normal"][: P.n] @ R.T
+        self.edgelets.transform(R, t, scale)
         T = self._kf_T_cw[: self.n_keyframes]
         T[:, :3, 3] *= scale
         T_old_new = np.eye(4)
@@ -243,6 +256,48 @@ class Map:
         self._meas.keep(~mask)
         self._changed()
 
+    # -- edgelets (Agility §4) ---------------------------------------------------------------------------
+    def add_edgelets(self, centre, direction, normal, source_kf) -> np.ndarray:
+        """Append edgelets (world centre, unit direction, unit dark-to-light normal, each (M, 3)); their ids."""
+        centre = np.asarray(centre, dtype=np.float64).reshape(-1, 3)
+        n = len(centre)
+        src = _rows("source_kf", source_kf, n, (), np.int32)
+        self._check_indices("source keyframe", src, self.n_keyframes)
+        d, x = (_rows(k, v, n, (3,), np.float64) for k, v in (("direction", direction), ("normal", normal)))
+        idx = self.edgelets.add(centre, d, x, src)
+        self._changed()
+        return idx
+
+    def set_edgelets(self, indices, centre, direction, normal) -> None:
+        idx = self._check_indices("edgelet", indices, self.edgelets.n_total)
+        n = len(idx)
+        self.edgelets.set(idx, *(_rows("edgelet", v, n, (3,), np.float64) for v in (centre, direction, normal)))
+        self._changed()
+
+    def add_edgelet_measurements(self, kf, edgelet, a, b) -> np.ndarray:
+        """Keyframes ``kf`` measured edgelets ``edgelet`` as the image lines a + λb (level-0 px, (M, 2))."""
+        e = np.asarray(edgelet, dtype=np.int32).reshape(-1)
+        n = len(e)
+        k = _rows("kf", kf, n, (), np.int32)
+        self._check_indices("keyframe", k, self.n_keyframes)
+        self._check_indices("edgelet", e, self.edgelets.n_total)
+        idx = self.edgelets.add_measurements(
+            k, e, _rows("a", a, n, (2,), np.float64), _rows("b", b, n, (2,), np.float64)
+        )
+        self._changed()
+        return idx
+
+    def add_edgelet_table_rows(self, kf: int, ids, visible, r_search, t_min, max_blur) -> None:
+        """Agility §5.2: visibility-table rows of edgelets ``ids`` measured in keyframe ``kf``."""
+        self._check_indices("keyframe", kf, self.n_keyframes)
+        self._check_indices("edgelet", ids, self.edgelets.n_total)
+        self.edgelets.append_table(int(kf), ids, visible, r_search, t_min, max_blur)
+        self._changed()
+
+    def mark_edgelets_bad(self, indices) -> None:
+        self.edgelets.mark_bad(self._check_indices("edgelet", indices, self.edgelets.n_total))
+        self._changed()
+
     def __getattr__(self, name: str):
         # Read-only views of the point and measurement columns: map.X, map.meas_kf, ...
         if name in _POINT_FIELDS:
@@ -268,6 +323,7 @@ class Map:
                 **{k: P.copy(k) for k in _POINT_FIELDS},
                 **{k: M.copy(k) for k in _MEAS_FIELDS},
                 good_point_indices=good,
+                **self.edgelets.snapshot_fields(),
             )
         return self._snapshot
 

@@ -24,13 +24,15 @@ from ..errors import InputError, PtamError
 from ..image.pyramid import Pyramid
 from .keyframe import KeyFrame
 from .map import Map
-from .map_file_checks import FIELDS, check_layout, check_values, read_members, scalar
+from .map_file_checks import FIELDS, Member, check_layout, check_values, read_members, scalar
 from .snapshot import MapSnapshot
 
 FORMAT = "ptam-map"
-VERSION = 1
+VERSION = 2
+# Version 2 added panorama keyframes and their rays (Gauglitz et al. §3.2); a version-1 map has neither.
+_ADDED_IN_2 = {"ray": "X", "kf_panorama": "kf_image0"}  # field -> the field whose length it has
 
-_POINTS = ("X", "normal", "source_kf", "source_level", "source_xy", "bad")
+_POINTS = ("X", "normal", "source_kf", "source_level", "source_xy", "bad", "ray")
 _MEASUREMENTS = ("meas_kf", "meas_pt", "meas_xy", "meas_level", "meas_source")
 
 
@@ -57,6 +59,7 @@ def save_map(path: str | os.PathLike, snapshot: MapSnapshot, camera, levels: int
         "kf_depth_mean": np.array([kf.scene_depth_mean for kf in snapshot.keyframes]),
         "kf_depth_sigma": np.array([kf.scene_depth_sigma for kf in snapshot.keyframes]),
         "kf_timestamp": np.array([kf.timestamp for kf in snapshot.keyframes]),
+        "kf_panorama": np.array([kf.panorama for kf in snapshot.keyframes], dtype=bool),
         **{k: np.asarray(getattr(snapshot, k)) for k in _POINTS + _MEASUREMENTS},
     }
     directory = os.path.dirname(os.path.abspath(path))
@@ -90,7 +93,7 @@ def _read(path: str, image_cfg) -> tuple[dict[str, np.ndarray], object]:
     try:
         members = read_members(path)
         with np.load(path, allow_pickle=False) as z:
-            _check_format(path, z, members)
+            version = _check_format(path, z, members)
             camera = _camera(path, z["camera"])
             levels = scalar(path, z["levels"], "levels", "iu")
             if levels != image_cfg.levels:
@@ -98,25 +101,33 @@ def _read(path: str, image_cfg) -> tuple[dict[str, np.ndarray], object]:
                     f"map file {path} was built with {levels} pyramid levels; the config has "
                     f"image.levels = {image_cfg.levels}"
                 )
+            stored = set(members)
+            if version == 1:
+                members = {
+                    **members,
+                    **{k: Member(members[n].shape[:1], np.dtype(bool)) for k, n in _ADDED_IN_2.items()},
+                }
             check_layout(path, members, camera.width, camera.height)
-            arrays = {k: z[k] for k in FIELDS}
+            arrays = {k: z[k] if k in stored else np.zeros(members[k].shape, bool) for k in FIELDS}
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as e:
         raise InputError(f"cannot read map file {path}: corrupt or not a ptam map ({e})") from None
     check_values(path, arrays, camera.width, camera.height, levels)
     return arrays, camera
 
 
-def _check_format(path: str, z, members: dict) -> None:
-    """The format string and version (first: another version may hold other fields), then every field present."""
+def _check_format(path: str, z, members: dict) -> int:
+    """The format string and version (first: another version may hold other fields), then every field present;
+    returns the version."""
     if "format" not in members or members["format"].dtype.kind != "U" or str(z["format"]) != FORMAT:
         raise InputError(f"{path} is not a ptam map file")
     v = members.get("version")
     version = int(z["version"]) if v is not None and v.dtype.kind in "iu" and v.shape == () else -1
-    if version != VERSION:
-        raise InputError(f"map file {path} has format version {version}; this ptam reads version {VERSION}")
-    missing = [k for k in FIELDS if k not in members]
+    if version not in (1, VERSION):
+        raise InputError(f"map file {path} has format version {version}; this ptam reads version {VERSION} (and 1)")
+    missing = [k for k in FIELDS if k not in members and not (version == 1 and k in _ADDED_IN_2)]
     if missing:
         raise InputError(f"map file {path} is incomplete: no '{missing[0]}'")
+    return version
 
 
 def _camera(path: str, member: np.ndarray):
@@ -140,11 +151,9 @@ def load_map(path: str | os.PathLike, image_cfg) -> LoadedMap:
     try:
         for i, image in enumerate(a["kf_image0"]):
             pyramid = Pyramid.build(image, image_cfg)
-            kf = KeyFrame(
-                i, pyramid, float(a["kf_depth_mean"][i]), float(a["kf_depth_sigma"][i]), float(a["kf_timestamp"][i])
-            )
-            m.add_keyframe(kf, a["kf_T_cw"][i])
-        m.add_points(a["X"], a["normal"], a["source_kf"], a["source_level"], a["source_xy"])
+            depth, sigma, stamp = (float(a[k][i]) for k in ("kf_depth_mean", "kf_depth_sigma", "kf_timestamp"))
+            m.add_keyframe(KeyFrame(i, pyramid, depth, sigma, stamp, bool(a["kf_panorama"][i])), a["kf_T_cw"][i])
+        m.add_points(a["X"], a["normal"], a["source_kf"], a["source_level"], a["source_xy"], a["ray"])
         if a["bad"].any():
             m.mark_bad(np.flatnonzero(a["bad"]))
         m.add_measurements(a["meas_kf"], a["meas_pt"], a["meas_xy"], a["meas_level"], a["meas_source"])

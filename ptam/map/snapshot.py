@@ -7,7 +7,7 @@ are copies; the per-level keyframe image stacks are views of the map's append-on
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -20,8 +20,15 @@ class MapSnapshot:
 
     Points (all, including bad ones, so indices stay stable): ``X`` world position, ``normal`` unit patch
     normal in the world frame, ``source_kf``/``source_level``/``source_xy`` the patch source (pixel at the
-    source level), ``bad``. Measurements: keyframe ``meas_kf`` observed point ``meas_pt`` at level-0 pixel
+    source level), ``bad``, ``ray`` (a panorama feature, Gauglitz et al. §3.2: a ray from its source keyframe's
+    centre). Measurements: keyframe ``meas_kf`` observed point ``meas_pt`` at level-0 pixel
     ``meas_xy`` on pyramid level ``meas_level``, made by ``meas_source`` (``map.SRC_*``).
+
+    Edgelets (Agility §4, ``map.edgelet_store``; empty unless the mapper makes them): ``edgelet_centre``,
+    ``edgelet_direction``, ``edgelet_normal`` (M, 3), ``edgelet_source_kf``, ``edgelet_bad``; their keyframe
+    measurements ``edgelet_meas_kf``/``edgelet_meas_edgelet`` with image lines ``edgelet_meas_a``/``_b``
+    (level-0 px); ``edgelet_tables`` keyframe -> (ids, visible, r_search, t_min, max_blur) of §5.2's
+    visibility table.
     """
 
     version: int
@@ -34,12 +41,23 @@ class MapSnapshot:
     source_level: np.ndarray
     source_xy: np.ndarray
     bad: np.ndarray
+    ray: np.ndarray
     meas_kf: np.ndarray
     meas_pt: np.ndarray
     meas_xy: np.ndarray
     meas_level: np.ndarray
     meas_source: np.ndarray
     good_point_indices: np.ndarray
+    edgelet_centre: np.ndarray = field(default_factory=lambda: _empty((0, 3), np.float64))
+    edgelet_direction: np.ndarray = field(default_factory=lambda: _empty((0, 3), np.float64))
+    edgelet_normal: np.ndarray = field(default_factory=lambda: _empty((0, 3), np.float64))
+    edgelet_source_kf: np.ndarray = field(default_factory=lambda: _empty((0,), np.int32))
+    edgelet_bad: np.ndarray = field(default_factory=lambda: _empty((0,), np.bool_))
+    edgelet_meas_kf: np.ndarray = field(default_factory=lambda: _empty((0,), np.int32))
+    edgelet_meas_edgelet: np.ndarray = field(default_factory=lambda: _empty((0,), np.int32))
+    edgelet_meas_a: np.ndarray = field(default_factory=lambda: _empty((0, 2), np.float64))
+    edgelet_meas_b: np.ndarray = field(default_factory=lambda: _empty((0, 2), np.float64))
+    edgelet_tables: dict = field(default_factory=dict)
 
     @property
     def n_keyframes(self) -> int:
@@ -54,6 +72,16 @@ class MapSnapshot:
     def camera_centres(self) -> np.ndarray:
         """(N, 3) keyframe camera centres in the world frame."""
         return camera_centres(self.kf_T_cw)
+
+    @property
+    def good_edgelet_indices(self) -> np.ndarray:
+        return np.flatnonzero(~self.edgelet_bad)
+
+
+def _empty(shape: tuple, dtype) -> np.ndarray:
+    a = np.zeros(shape, dtype)
+    a.setflags(write=False)
+    return a
 
 
 def camera_centres(T_cw: np.ndarray) -> np.ndarray:

@@ -10,23 +10,25 @@ aborts a running bundle adjustment (PTAM §6.3).
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from collections import deque
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-import cv2
 import numpy as np
 
-from ..image.pyramid import Pyramid, zero_to_level
-from ..image.shi_tomasi import candidates
+from ..image.pyramid import Pyramid
 from ..map.keyframe import KeyFrame
 from ..map.map import SRC_EPIPOLAR, SRC_REFIND, SRC_ROOT, SRC_TRACKER, Map
 from ..map.snapshot import MapSnapshot
 from ..patch.finder import PatchFinder
 from .bundle import Bundle
+from .edgelet_mapping import integrate_keyframe
 from .epipolar import epipolar_matches, unit_plane_corners
 from .local_ba import local_sets
+from .normals import NormalEstimator
+from .panorama import add_ray_points, free_candidates
 from .refind import refind_points
 
 if TYPE_CHECKING:
@@ -51,6 +53,7 @@ class KeyframeRequest:
     level: np.ndarray
     depth_mean: float
     depth_sigma: float
+    panorama: bool = False  # Gauglitz et al. §4.3: taken under rotation-only motion
 
 
 class MapMaker:
@@ -59,6 +62,7 @@ class MapMaker:
         self.cfg = cfg
         self.bundle = Bundle(camera, cfg.bundle)
         self.finder = PatchFinder(cfg.patch)
+        self.normals = NormalEstimator(camera, cfg)  # Gauglitz §5.4, the lowest-priority job
         self.map = map_ if map_ is not None else Map()
         self.queue: deque[KeyframeRequest] = deque()
         self.snapshot: MapSnapshot | None = None
@@ -79,6 +83,7 @@ class MapMaker:
         self.wiggle_depth_normalised = 0.0
         # ba_running: "local" or "global" while a bundle adjustment runs, else None (read by the viewer).
         self.stats: dict[str, Any] = {"local_ba": [], "global_ba": [], "keyframes_added": 0, "ba_running": None}
+        self.stats["panorama_keyframes_added"] = 0
         self.ready = False  # set once a usable map exists; the mapper thread idles until then
         self.reset_requested = False  # the map is corrupt; the system starts again (PTAM code)
         if len(self.map.keyframes):
@@ -126,6 +131,8 @@ class MapMaker:
             self.bundle_adjust(recent=False)
         elif self._failure_queue:
             self._refind_from_failure_queue()
+        elif self.cfg.normals.enabled and self.normals.has_work(self.map):
+            self.normals.run_batch(self.map)
         else:
             return False
         self.publish()
@@ -165,21 +172,27 @@ class MapMaker:
                 return
 
     # -- keyframe integration (PTAM §6.2) ---------------------------------------------------------------
-    def _new_keyframe(
-        self, pyramid: Pyramid, T_cw: np.ndarray, timestamp: float, depth_mean: float, depth_sigma: float
-    ) -> int:
-        kf = KeyFrame(self.map.next_keyframe_id, pyramid, float(depth_mean), float(depth_sigma), float(timestamp))
-        return self.map.add_keyframe(kf, T_cw)
-
     def _integrate(self, r: KeyframeRequest) -> None:
-        k = self._new_keyframe(r.pyramid, r.T_cw, r.timestamp, r.depth_mean, r.depth_sigma)
+        """PTAM §6.2; a panorama keyframe (Gauglitz et al. §4.3) gains rays instead of triangulated points."""
+        kf = KeyFrame(
+            self.map.next_keyframe_id, r.pyramid, float(r.depth_mean), float(r.depth_sigma), float(r.timestamp)
+        )
+        k = self.map.add_keyframe(dataclasses.replace(kf, panorama=r.panorama), r.T_cw)
         good = ~self.map.bad[r.point_ids]
         self.map.add_measurements(k, r.point_ids[good], r.xy[good], r.level[good], SRC_TRACKER)
         self._refind_in_keyframe(k, self._unmeasured_points(k))
+        min_dist = self.cfg.mapper.candidate_min_dist_px
         for level in NEW_POINT_LEVEL_ORDER:
-            self.add_some_map_points(k, level)
+            if r.panorama:
+                add_ray_points(self.map, self.camera, k, level, self.cfg.image, min_dist)
+            else:
+                self.add_some_map_points(k, level)
+        if self.cfg.edgelets.enabled and not r.panorama:  # Agility §4.3
+            job = integrate_keyframe(self.map, self.camera, self.cfg, k, self.closest_keyframe(k))
+            self.stats.setdefault("edgelet_jobs", []).append(job)
         self.recent_converged = self.full_converged = False
         self.stats["keyframes_added"] += 1
+        self.stats["panorama_keyframes_added"] += int(r.panorama)
 
     def _measured_in(self, k: int) -> np.ndarray:
         measured = np.zeros(self.map.n_points_total, bool)
@@ -190,28 +203,18 @@ class MapMaker:
         return np.flatnonzero(~self._measured_in(k) & ~self.map.bad)
 
     def closest_keyframe(self, k: int) -> int:
+        """The nearest keyframe by camera centre with a baseline to k: panorama keyframes have none."""
         c = self.map.camera_centres
         d = np.linalg.norm(c - c[k], axis=1)
         d[k] = np.inf
+        d[[kf.panorama for kf in self.map.keyframes]] = np.inf
         return int(np.argmin(d))
 
     def add_some_map_points(self, k: int, level: int) -> int:
         """PTAM code ``AddSomeMapPoints``: thinned candidates of keyframe k, epipolar search in the closest."""
         m = self.map
         kf = m.keyframes[k]
-        img = kf.pyramid.levels[level]
-        xy, _ = candidates(img, self.cfg.image.fast_thresholds[level], self.cfg.image)
-        busy = (m.meas_kf == k) & (m.meas_level == level)
-        if busy.any() and len(xy):
-            # PTAM code ThinCandidates: drop candidates near this level's measurements (a distance transform of
-            # the measured pixels instead of PTAM's all-pairs loop).
-            h, w = img.shape
-            b = np.rint(zero_to_level(m.meas_xy[busy], level)).astype(np.int64)
-            b = b[(b[:, 0] >= 0) & (b[:, 1] >= 0) & (b[:, 0] < w) & (b[:, 1] < h)]
-            free = np.full((h, w), 255, np.uint8)
-            free[b[:, 1], b[:, 0]] = 0
-            dist = cv2.distanceTransform(free, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-            xy = xy[dist[xy[:, 1], xy[:, 0]] >= self.cfg.mapper.candidate_min_dist_px]
+        xy = free_candidates(m, k, level, self.cfg.image, self.cfg.mapper.candidate_min_dist_px)
         if len(xy) == 0:
             return 0
         t = self.closest_keyframe(k)
@@ -308,6 +311,9 @@ class MapMaker:
         n = m.n_keyframes
         fixed = np.zeros(n, bool)
         fixed[0] = True
+        # Gauglitz et al. §5.2 adjusts SfM groups only: panorama keyframes keep their poses, rays are not used.
+        fixed |= np.array([kf.panorama for kf in m.keyframes])
+        use = ~m.ray[m.meas_pt]
         if recent and n < self.cfg.mapper.local_ba_min_keyframes:
             # Small maps: global adjustment covers everything (PTAM code).
             self.recent_converged = True
@@ -321,15 +327,16 @@ class MapMaker:
         else:
             fixed_poses = fixed
             adjust_points = ~m.bad
+        adjust_points = adjust_points & ~m.ray
         self.stats["ba_running"] = "local" if recent else "global"
         try:
             res = self.bundle.adjust(
                 m.kf_T_cw,
                 m.X,
-                m.meas_kf,
-                m.meas_pt,
-                m.meas_xy,
-                m.meas_level,
+                m.meas_kf[use],
+                m.meas_pt[use],
+                m.meas_xy[use],
+                m.meas_level[use],
                 fixed_poses,
                 adjust_points,
                 abort=self._abort,
@@ -354,7 +361,7 @@ class MapMaker:
             if recent:
                 self.recent_converged = False
         if len(res.outliers):
-            self._handle_outliers(res.outliers)
+            self._handle_outliers(np.flatnonzero(use)[res.outliers])
         if res.converged:
             self.recent_converged = True
             if not recent:

@@ -38,7 +38,7 @@ from ..mapping.map_maker import KeyframeRequest, MapMaker
 from ..tracking.relocaliser import Relocaliser
 from ..tracking.tracker import Tracker
 from ..tracking.trails import TrailTracker
-from ..vocabulary import InitMode, Quality, RunMode, TrackingState
+from ..vocabulary import InitMode, PoseModel, Quality, RunMode, TrackingState
 from .frame_outcome import FrameOutcome
 from .initialisation import Initialisation
 from .run_stats import RunStats
@@ -258,6 +258,14 @@ class System(Initialisation):
         (after a recovery or missed frames)."""
         m = self.cfg.mapper
         kf = res.keyframe
+        turned = self._view_turned(res)
+        panorama = turned and res.pose_model == PoseModel.ROTATION
+        if panorama:  # Gauglitz et al. §4.3: the keyframe's kind follows the model; [R|0] has no baseline
+            due = True
+        elif res.pose_model == PoseModel.ROTATION:
+            due = False
+        else:
+            due = turned or self.mapper.need_new_keyframe(kf.nearest_keyframe_distance, kf.mean_scene_depth)
         if (
             self.localize_only
             or res.rapid_motion
@@ -266,7 +274,7 @@ class System(Initialisation):
                 res.quality == Quality.GOOD
                 and kf.frames_since_keyframe > m.kf_min_frames
                 and self.mapper.queue_size() < m.kf_max_queue
-                and self.mapper.need_new_keyframe(kf.nearest_keyframe_distance, kf.mean_scene_depth)
+                and due
             )
         ):
             return False
@@ -275,13 +283,14 @@ class System(Initialisation):
         self.mapper.add_keyframe(
             KeyframeRequest(
                 res.pyramid,
-                res.T_cw.copy(),
+                self._about_parent(res.T_cw) if panorama else res.T_cw.copy(),
                 res.timestamp,
                 meas.point_ids[f],
                 meas.xy[f],
                 meas.level[f],
                 kf.mean_scene_depth,
                 kf.scene_depth_sigma,
+                panorama=panorama,
             )
         )
         self.tracker.keyframe_added()
@@ -293,6 +302,28 @@ class System(Initialisation):
             if self.mode == RunMode.ASYNC and self.cfg.system.async_waits_for_local_ba:
                 self._wait_for_mapper()
         return True
+
+    def _about_parent(self, T_cw: np.ndarray) -> np.ndarray:
+        """A panorama keyframe's pose. Its rotation was estimated about the nearest keyframe's centre: when that
+        is a panorama keyframe, the new one takes its centre exactly (Gauglitz et al. §4.3, [R|t]_prev ∘ [R|0]),
+        so a panorama group shares one centre instead of drifting by up to t_max per keyframe; the first of a
+        group keeps the centre tracked against the 3-D map."""
+        snap = self.mapper.snapshot
+        d = np.linalg.norm(snap.camera_centres - se3.inv(T_cw)[:3, 3], axis=1)
+        nearest = int(np.argmin(d))
+        if not snap.keyframes[nearest].panorama:
+            return T_cw.copy()
+        T = T_cw.copy()
+        T[:3, 3] = -T[:3, :3] @ snap.camera_centres[nearest]
+        return T
+
+    def _view_turned(self, res) -> bool:
+        """Gauglitz et al. §4.3, condition 3 for rotation-only motion: the view has travelled far enough from every
+        keyframe's (``model_selection.panorama_kf_travel`` of the image width). Under [R|0] the keyframe is a
+        panorama keyframe; under [R|t] (the camera has also moved beyond t_max) an SfM keyframe, whose baseline
+        lets the map grow where the camera now looks."""
+        ms = self.cfg.model_selection
+        return ms.enabled and res.keyframe.view_travel_px > ms.panorama_kf_travel * self.camera.width
 
     def _wait_for_mapper(self) -> None:
         """``async`` on a recorded source: the tracker would otherwise run several times faster than real time,

@@ -2,7 +2,8 @@
 
 PTAM code (``MiniPatch``): a (2h+1)² patch sampled at an integer pixel, compared by plain (not zero-mean)
 SSD at every FAST corner within a circular radius of a predicted position; the best one is a match when
-its SSD is below ``max_ssd``. ``minipatch_find_ref`` is the numpy reference.
+its SSD is below ``max_ssd``. With ``zero_mean`` the patches' mean difference is removed first (zero-mean SSD,
+as PTAM's own patch search, §5.3), so a change of exposure does not end the trails.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from numba import njit
 
 
 @njit(nogil=True, cache=True)
-def minipatch_find(src, src_xy, dst, dst_xy, corners, row_lut, radius, half, max_ssd):
+def minipatch_find(src, src_xy, dst, dst_xy, corners, row_lut, radius, half, max_ssd, zero_mean):
     """For each i: template at ``src_xy[i]`` in ``src``, searched in ``dst`` around ``dst_xy[i]``.
 
     Returns found (T, 2) int32 and ok (T,) bool. Ties keep the corner met first (row-major order).
@@ -23,6 +24,7 @@ def minipatch_find(src, src_xy, dst, dst_xy, corners, row_lut, radius, half, max
     found = np.zeros((n, 2), dtype=np.int32)
     ok = np.zeros(n, dtype=np.bool_)
     r2 = radius * radius
+    n_px = (2 * half + 1) * (2 * half + 1)
     for i in range(n):
         sx = src_xy[i, 0]
         sy = src_xy[i, 1]
@@ -34,7 +36,7 @@ def minipatch_find(src, src_xy, dst, dst_xy, corners, row_lut, radius, half, max
         y1 = min(cy + radius, hd - 1 - half)
         if y1 < y0:
             continue
-        best = max_ssd
+        best = float(max_ssd)
         bx = -1
         by = -1
         for k in range(row_lut[y0], row_lut[y1 + 1]):
@@ -46,15 +48,27 @@ def minipatch_find(src, src_xy, dst, dst_xy, corners, row_lut, radius, half, max
             dy = y - cy
             if dx * dx + dy * dy > r2:
                 continue
-            ssd = 0
-            for v in range(-half, half + 1):
-                for u in range(-half, half + 1):
-                    d = np.int32(dst[y + v, x + u]) - np.int32(src[sy + v, sx + u])
-                    ssd += d * d
-                    if ssd >= best:
+            ssd = 0.0
+            if zero_mean:
+                s = 0
+                s2 = 0
+                for v in range(-half, half + 1):
+                    for u in range(-half, half + 1):
+                        d = np.int64(dst[y + v, x + u]) - np.int64(src[sy + v, sx + u])
+                        s += d
+                        s2 += d * d
+                ssd = s2 - s * s / n_px
+            else:
+                acc = 0
+                for v in range(-half, half + 1):
+                    for u in range(-half, half + 1):
+                        d = np.int64(dst[y + v, x + u]) - np.int64(src[sy + v, sx + u])
+                        acc += d * d
+                        if acc >= best:
+                            break
+                    if acc >= best:
                         break
-                if ssd >= best:
-                    break
+                ssd = float(acc)
             if ssd < best:
                 best = ssd
                 bx = x

@@ -11,8 +11,23 @@ import numpy as np
 from .pose_kernels import pose_irls
 
 
-def update_pose(cam_params, tracker_cfg, T_cw, X, xy, level, coarse: bool, fixed_sigma: bool = True):
+def update_pose(
+    cam_params,
+    tracker_cfg,
+    T_cw,
+    X,
+    xy,
+    level,
+    coarse: bool,
+    fixed_sigma: bool = True,
+    Xw: np.ndarray | None = None,
+    c_ref: np.ndarray | None = None,
+    t_max: float = -1.0,
+):
     """New T_cw and Tukey weights (n,) from world points X (n, 3) found at level-0 pixels ``xy`` on ``level``.
+
+    ``Xw``: homogeneous weights (1 for map points, 0 for panorama rays, whose X is then a direction); ``t_max``
+    ≥ 0 keeps the camera centre within ``t_max`` of ``c_ref`` (Gauglitz et al. §6.2).
 
     The coarse stage re-linearises at every iteration (PTAM code); the fine stage every
     ``relinearise_every`` iterations (PTAM §6.5). With ``tracker.tukey_override_enabled`` the last iterations
@@ -29,6 +44,7 @@ def update_pose(cam_params, tracker_cfg, T_cw, X, xy, level, coarse: bool, fixed
         cam_params,
         np.ascontiguousarray(T_cw, dtype=np.float64),
         np.ascontiguousarray(X),
+        np.ones(len(X)) if Xw is None else np.ascontiguousarray(Xw, dtype=np.float64),
         np.ascontiguousarray(xy, dtype=np.float64),
         inv_sigma,
         int(cfg.irls_iterations),
@@ -37,4 +53,6 @@ def update_pose(cam_params, tracker_cfg, T_cw, X, xy, level, coarse: bool, fixed
         float(cfg.pose_prior),
         int(cfg.tukey_override_after),
         float(override),
+        np.zeros(3) if c_ref is None else np.ascontiguousarray(c_ref, dtype=np.float64),
+        float(t_max),
     )

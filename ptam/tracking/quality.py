@@ -35,12 +35,14 @@ class TrackingQuality:
         found_per_level: np.ndarray,
         suspend: bool = False,
         too_far: bool = False,
+        too_few_inliers: bool = False,
     ) -> str:
         """``too_far``: the pose is far from every keyframe, which turns a poor frame bad (PTAM code: only a
-        dodgy frame is checked with ``IsDistanceToNearestKeyFrameExcessive``; a good one stays good)."""
+        dodgy frame is checked with ``IsDistanceToNearestKeyFrameExcessive``; a good one stays good).
+        ``too_few_inliers``: too few measurements support the pose for it to mean anything (Gauglitz §4.4)."""
         cfg = self.cfg
         attempted, found = int(attempted_per_level.sum()), int(found_per_level.sum())
-        if attempted == 0 or found == 0:
+        if attempted == 0 or found == 0 or too_few_inliers:
             quality = BAD
         else:
             fraction = found / attempted

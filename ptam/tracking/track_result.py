@@ -10,7 +10,7 @@ import numpy as np
 
 from ..geometry import se3
 from ..image.pyramid import Pyramid
-from ..vocabulary import Quality
+from ..vocabulary import PoseModel, Quality
 
 
 @dataclass(frozen=True)
@@ -36,6 +36,7 @@ class StageTimings:
     feature_projection: float
     patch_search: float
     pose_update: float
+    model_selection: float  # both pose models and their GRIC (Gauglitz et al. §4.2); 0 when disabled
     total: float
 
 
@@ -52,6 +53,7 @@ class KeyframeCandidate:
     nearest_keyframe_distance: float
     mean_scene_depth: float
     scene_depth_sigma: float
+    view_travel_px: float = float("inf")  # Gauglitz §4.3: image travel of the view since the nearest keyframe view
 
     @property
     def distance_over_depth(self) -> float:
@@ -79,6 +81,9 @@ class TrackResult:
     keyframe: KeyframeCandidate
     rapid_motion: bool = False  # failure detection was suspended this frame (Agility §8)
     in_doubt: bool = False  # tracked from an approximate prior (a recovery or missed frames): no keyframe from it
+    pose_model: PoseModel = PoseModel.GENERAL  # the motion model chosen (Gauglitz et al. §4.2)
+    n_edgelets_attempted: int = 0  # edgelets searched this frame (Agility §5.1)
+    n_edgelets_found: int = 0  # ... and found by the sawtooth search
 
     @property
     def T_wc(self) -> np.ndarray:
@@ -105,6 +110,7 @@ class TrackResult:
 
 
 PREPARE, PROJECT, SEARCH, POSE = "keyframe_preparation", "feature_projection", "patch_search", "pose_update"
+MODEL = "model_selection"
 
 
 class Clock:
@@ -112,7 +118,7 @@ class Clock:
 
     def __init__(self):
         self.start = self.t = time.perf_counter()
-        self.ms = {PREPARE: 0.0, PROJECT: 0.0, SEARCH: 0.0, POSE: 0.0}
+        self.ms = {PREPARE: 0.0, PROJECT: 0.0, SEARCH: 0.0, POSE: 0.0, MODEL: 0.0}
 
     def lap(self, stage: str) -> None:
         now = time.perf_counter()

@@ -12,6 +12,8 @@
    refinement from ``fine_subpix_min_level`` up;
 6. final pose from the coarse and fine measurements together (§5.4), then motion model and quality (§5.6);
    failure detection is suspended while the prior rotates faster than ``reloc.rapid_rotation_deg`` (Agility §8).
+   With ``model_selection.enabled`` the final pose is the better of [R|t] and [R|t ≤ t_max] by GRIC (Gauglitz
+   et al. §4.2, :mod:`.model_selection`); panorama features (rays) constrain the rotation only.
 
 The tracker reads the immutable :class:`~ptam.map.snapshot.MapSnapshot` it is given and takes no lock. Per-point
 work is vectorised or in numba kernels; the Python code here handles whole arrays only.
@@ -32,12 +34,26 @@ from ..image.pyramid import Pyramid
 from ..map.snapshot import MapSnapshot
 from ..patch.finder import PatchFinder
 from ..patch.warp import patch_pixel_vectors, search_warps, template_matrices
+from ..vocabulary import PoseModel
+from .edgelet_tracking import EdgeletFrame, EdgeletTracker
+from .model_selection import select_pose_model
 from .motion_model import FrameGaps, MotionModel
 from .pose_update import update_pose
 from .projection import project_points
 from .quality import GOOD, TrackingQuality
 from .rotation_estimator import RotationEstimator
-from .track_result import POSE, PREPARE, PROJECT, SEARCH, Batch, Clock, KeyframeCandidate, Measurements, TrackResult
+from .track_result import (
+    MODEL,
+    POSE,
+    PREPARE,
+    PROJECT,
+    SEARCH,
+    Batch,
+    Clock,
+    KeyframeCandidate,
+    Measurements,
+    TrackResult,
+)
 
 
 class Tracker:
@@ -52,6 +68,8 @@ class Tracker:
         self.rotation = RotationEstimator(camera, cfg.rotation)
         self.quality = TrackingQuality(cfg.tracker)
         self.finder = PatchFinder(cfg.patch)
+        self.edgelets = EdgeletTracker(camera, cfg)  # Agility §5
+        self._edges = EdgeletFrame.empty()
         self._pixel_vectors_of = None
         self._pixel_vectors = (np.zeros((0, 3)), np.zeros((0, 3)))
         self.reset()
@@ -68,6 +86,7 @@ class Tracker:
         self.scene_depth: tuple[float | None, float] = (None, 0.0)
         self._force_coarse = False
         self._rapid = False
+        self._model = PoseModel.GENERAL
         self._rng = np.random.default_rng(self.tcfg.shuffle_seed)
 
     def set_pose(self, T_cw: np.ndarray, recovered: bool = False) -> None:
@@ -110,6 +129,7 @@ class Tracker:
         force, self._force_coarse = self._force_coarse or late, False
         self._rapid = self._prior_is_rapid()
         batch = Batch()
+        self._edges = EdgeletFrame.empty()
         did_coarse = False
         n_visible = 0
         if snapshot is not None and snapshot.n_points and snapshot.n_keyframes:
@@ -143,8 +163,8 @@ class Tracker:
         clock.lap(SEARCH)
         did_coarse = bool(m.found.sum() >= cfg.coarse_min_points)
         if did_coarse:
-            X, xy = snapshot.X[ids[m.found]], m.xy[m.found]
-            T, _ = update_pose(self._cam, cfg, T, X, xy, level[m.found], coarse=True, fixed_sigma=not self._rapid)
+            X, Xw = _features(snapshot, ids[m.found])
+            T, _ = update_pose(self._cam, cfg, T, X, m.xy[m.found], level[m.found], True, not self._rapid, Xw)
         clock.lap(POSE)
         return T, did_coarse
 
@@ -168,13 +188,35 @@ class Tracker:
         radius = cfg.fine_radius_after_coarse_px if did_coarse else cfg.fine_radius_px
         m = self._search(pyramid, snapshot, ids, level, cand.M[sel], uv_sel, radius, level >= cfg.fine_subpix_min_level)
         batch.add(ids, level, m, coarse=False)
+        self._edges = self.edgelets.search(pyramid.levels[0], snapshot, T, self.motion)
         clock.lap(SEARCH)
         found, xy = batch.found(), batch.xy()
+        self._model = PoseModel.GENERAL
         if found.any():
-            X = snapshot.X[batch.ids()[found]]
-            T, w = update_pose(self._cam, cfg, T, X, xy[found], batch.level()[found], False, not self._rapid)
+            X, Xw = _features(snapshot, batch.ids()[found])
+            level = batch.level()[found]
+            if self.edgelets.usable(self._edges):
+                T, w, self._edges = self.edgelets.final_pose(T, X, Xw, xy[found], level, not self._rapid, self._edges)
+            elif self.cfg.model_selection.enabled:
+                T, w = self._select_model(snapshot, T, X, Xw, xy[found], level)
+                clock.lap(MODEL)
+            else:
+                T, w = update_pose(self._cam, cfg, T, X, xy[found], level, False, not self._rapid, Xw)
             batch.weights[found] = w
         return T
+
+    def _select_model(self, snapshot, T, X, Xw, xy, level):
+        """Gauglitz et al. §4.2, §6.2: [R|t] against [R|t ≤ t_max] about the nearest keyframe's centre, where
+        t_max = α_max·depth and α_max = r_fine / f keeps the panorama's rays inside the fine search radius."""
+        nearest, _ = _nearest_keyframe(snapshot, T)
+        depth = self.scene_depth[0] or snapshot.keyframes[nearest].scene_depth_mean
+        t_max = self.tcfg.fine_radius_px / self.camera.fx * depth
+        c_ref = snapshot.camera_centres[nearest]
+        choice = select_pose_model(
+            self.camera, self.tcfg, self.cfg.model_selection, T, X, Xw, xy, level, not self._rapid, c_ref, t_max
+        )
+        self._model = choice.model
+        return choice.T_cw, choice.weights
 
     # -- helpers -----------------------------------------------------------------------------------------
     def _potentially_visible(self, snapshot, T):
@@ -229,14 +271,23 @@ class Tracker:
         reloc = self.cfg.reloc
         rapid = reloc.suspend_when_rapid and self._rapid
         nearest, dist = _nearest_keyframe(snapshot, T)
+        travel = _view_travel(snapshot, T) * self.camera.fx
         # PTAM code (IsDistanceToNearestKeyFrameExcessive): a pose far beyond every keyframe, in units of the
         # initial stereo baseline, is not trusted however many patches matched.
         too_far = dist > self.tcfg.max_keyframe_distance_baselines * self.cfg.init.baseline_m
-        quality = self.quality.assess(att_l, found_l, suspend=rapid, too_far=too_far and np.isfinite(dist))
+        # Gauglitz et al. §4.3–§4.4: quality is the fraction of the selected model's inliers (PTAM §5.6 counts
+        # found patches, which a wrong pose on repetitive texture still finds), and tracking is lost when the
+        # inliers fall below the count that lets a model be estimated at all.
+        ms = self.cfg.model_selection
+        inl = meas.found & meas.inlier
+        few = ms.enabled and np.count_nonzero(inl) < ms.min_sfm_points
+        far = too_far and np.isfinite(dist)
+        judged = np.bincount(meas.level[inl], minlength=self.n_levels) if ms.enabled else found_l
+        quality = self.quality.assess(att_l, judged, suspend=rapid, too_far=far, too_few_inliers=few)
         self.T_cw = T
         self.frames_since_keyframe += 1
         depth = float("nan") if depth_mean is None else depth_mean
-        kf = KeyframeCandidate(quality == GOOD, self.frames_since_keyframe, nearest, dist, depth, depth_sigma)
+        kf = KeyframeCandidate(quality == GOOD, self.frames_since_keyframe, nearest, dist, depth, depth_sigma, travel)
         clock.lap(POSE)
         return TrackResult(
             frame_index=index,
@@ -257,6 +308,9 @@ class Tracker:
             timings=clock.timings(),
             keyframe=kf,
             rapid_motion=bool(rapid),
+            pose_model=self._model,
+            n_edgelets_attempted=self._edges.n_attempted,
+            n_edgelets_found=self._edges.n_found,
         )
 
     def _prior_is_rapid(self) -> bool:
@@ -283,6 +337,26 @@ class _Candidates:
     level: np.ndarray
     M: np.ndarray
     taken: np.ndarray
+
+
+def _features(snapshot, ids) -> tuple[np.ndarray, np.ndarray]:
+    """Homogeneous features (X, w) of points ``ids``: map points at w = 1; panorama rays (Gauglitz et al. §3.2) as
+    directions from their source keyframe's centre at w = 0."""
+    X = snapshot.X[ids]
+    ray = snapshot.ray[ids]
+    if ray.any():
+        X = X.copy()
+        X[ray] -= snapshot.camera_centres[snapshot.source_kf[ids[ray]]]
+    return X, (~ray).astype(np.float64)
+
+
+def _view_travel(snapshot, T) -> float:
+    """Smallest rotation angle (radians) between the camera and any keyframe: the image travel of the view, per
+    unit focal length, since the nearest keyframe view (Gauglitz et al. §4.3); inf without keyframes."""
+    if snapshot is None or not snapshot.n_keyframes:
+        return float("inf")
+    cos = (np.einsum("nij,ij->n", snapshot.kf_T_cw[:, :3, :3], T[:3, :3]) - 1.0) / 2.0
+    return float(np.arccos(np.clip(cos.max(), -1.0, 1.0)))
 
 
 def _nearest_keyframe(snapshot, T) -> tuple[int, float]:

@@ -61,6 +61,7 @@ class TrailTracker:
             c.trail_search_radius_px,
             c.trail_half_patch,
             c.trail_max_ssd,
+            c.trail_zero_mean,
         )
         back, ok_b = minipatch_find(
             pyramid.levels[0],
@@ -72,6 +73,7 @@ class TrailTracker:
             c.trail_search_radius_px,
             c.trail_half_patch,
             c.trail_max_ssd,
+            c.trail_zero_mean,
         )
         d2 = ((back - self.current_xy) ** 2).sum(axis=1)
         keep = ok & ok_b & (d2 <= c.trail_backward_tolerance_px2)

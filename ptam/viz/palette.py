@@ -14,6 +14,7 @@ FAILED_COLOUR = (150, 150, 150)  # measurements searched but not found
 TRAIL_COLOUR = (255, 160, 0)  # PTAM §6.1 stereo-initialisation trails
 TRAJECTORY_COLOUR = (255, 140, 0)
 KEYFRAME_COLOUR = (80, 160, 255)
+PANORAMA_COLOUR = (230, 80, 230)  # Gauglitz et al. §3.2: panorama keyframes and their rays (no depth)
 GRID_COLOUR = (128, 128, 128)  # PTAM code MapViewer::DrawGrid: grey lines ...
 GRID_AXIS_COLOUR = (255, 255, 255)  # ... the two through the origin white
 

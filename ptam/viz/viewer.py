@@ -11,15 +11,18 @@ What is logged (entity paths):
 * ``world/camera`` current pose; ``world/camera/image`` the frame, with ``found`` measurements coloured by pyramid
   level (PTAM's colours), ``failed`` ones as small grey dots, and the stereo-initialisation ``trails`` (PTAM §6.1);
 * ``camera/augmented`` the AR worker's augmented frame (PTAM §7.5: what the user looks at), as rendered through the
-  lens model, at the same ``frame`` / ``time`` as its camera image: :meth:`Viewer.augmented` is the AR layer's
-  listener; it runs in the AR worker's thread and only enqueues (skipped, counted in ``ar_dropped``, when full);
-* ``world/points`` the good map points coloured by source level; ``world/keyframes/NNNN`` one frustum per
-  keyframe with its thumbnail; ``world/trajectory/NNNNN`` the tracked camera path, logged incrementally in
+  lens model, at the same ``frame`` / ``time`` as its camera image: ``Viewer.augmented`` is the AR layer's view
+  (:mod:`ptam.viz.augmented`); it runs in the AR worker's thread, asks for at most ``viewer.ar_max_fps`` frames a
+  second, encodes them there and only enqueues (skipped, counted in ``ar_dropped``, when full);
+* ``world/points`` the good map points coloured by source level; ``world/panorama_rays`` the panorama features
+  (rays without depth, Gauglitz et al. §3.2) at their keyframe's mean depth; ``world/keyframes/NNNN`` one frustum
+  per keyframe with its thumbnail, panorama keyframes in the panorama colour; ``world/trajectory/NNNNN`` the
+  tracked camera path, logged incrementally in
   strips (at :meth:`Viewer.close`, ``world/trajectory`` holds the whole path as one strip); ``world/grid`` the
   dominant plane z = 0 once a map exists (PTAM §6.1);
 * ``state`` initialising / good / poor / lost / relocalising (PTAM §5.6);
-* ``plots/...`` tracking ms per frame, map points and keyframes over time (PTAM Fig. 4) and the mapper's queue
-  length and bundle adjustment activity.
+* ``plots/...`` tracking ms per frame, map points and keyframes over time (PTAM Fig. 4), the mapper's queue
+  length and bundle adjustment activity, and the motion model chosen per frame (``model/rotation_only``).
 """
 
 from __future__ import annotations
@@ -35,8 +38,9 @@ import rerun as rr
 
 from ..geometry import se3
 from ..map.snapshot import MapSnapshot
-from ..vocabulary import TrackingState
+from ..vocabulary import PoseModel, TrackingState
 from . import map_entities, palette
+from .augmented import ArFrame, AugmentedView
 from .blueprint import AUGMENTED_IMAGE, default_blueprint
 
 _BA_CODES = {None: 0, "local": 1, "global": 2}
@@ -68,19 +72,11 @@ class _Item:
     ba_running: str | None
 
 
-@dataclass(frozen=True)
-class _ArFrame:
-    """One augmented frame as handed over by the AR worker (its own new image: nothing shared is copied)."""
-
-    index: int
-    timestamp: float
-    bgr: np.ndarray
-
-
 class Viewer:
     """``Viewer(recording, camera, cfg)`` then ``system.observers.append(viewer)``; :meth:`close` at the end logs
-    the final map and trajectory and waits for the logging thread. ``augmented=True``: augmented frames will be
-    passed to :meth:`augmented`, and the layout shows them first."""
+    the final map and trajectory and waits for the logging thread. ``augmented=True``: an AR layer will show its
+    frames in :attr:`augmented` (its view: ``layer.listeners.append(viewer.augmented)``), and the layout shows
+    them first."""
 
     def __init__(self, recording: rr.RecordingStream, camera, cfg, augmented: bool = False):
         self.rec = recording
@@ -89,7 +85,6 @@ class Viewer:
         self.show_augmented = augmented
         self.queue: queue.Queue = queue.Queue(maxsize=self.cfg.queue_size)
         self.dropped = 0
-        self.ar_dropped = 0  # augmented frames not logged (the logging thread had no time for them)
         self._frame_time: tuple[int, float] | None = None  # the latest tracked frame's place on the timelines
         self.observe_ms: list[float] = []  # time spent in the tracker's thread, per frame
         self._snapshot: MapSnapshot | None = None
@@ -103,6 +98,7 @@ class Viewer:
         self._error: BaseException | None = None
         self._log_static()
         self._thread = threading.Thread(target=self._run, name="ptam-viewer", daemon=True)
+        self.augmented = AugmentedView(self.cfg, self.queue, self._thread.is_alive)
         self._thread.start()
 
     # -- tracker's thread ------------------------------------------------------------------------------------
@@ -129,17 +125,10 @@ class Viewer:
             system.mapper.stats.get("ba_running"),
         )
 
-    # -- the AR worker's thread -------------------------------------------------------------------------------
-    def augmented(self, index: int, timestamp: float, bgr: np.ndarray) -> None:
-        """The AR layer's listener: queue augmented frame ``bgr`` (BGR uint8) of frame ``index`` for logging as
-        ``camera/augmented``; never waits (a full queue or a closed viewer skips it)."""
-        if not self._thread.is_alive():
-            self.ar_dropped += 1
-            return
-        try:
-            self.queue.put_nowait(_ArFrame(int(index), float(timestamp), bgr))
-        except queue.Full:
-            self.ar_dropped += 1
+    @property
+    def ar_dropped(self) -> int:
+        """Augmented frames not logged: the logging thread had no room for them."""
+        return self.augmented.dropped
 
     def close(self, system=None) -> None:
         """Log ``system``'s final map and trajectory (never dropped), stop the logging thread, flush."""
@@ -157,7 +146,7 @@ class Viewer:
             if item is None:
                 return
             try:
-                if isinstance(item, _ArFrame):
+                if isinstance(item, ArFrame):
                     self._log_augmented(item)
                 else:
                     self._log(item)
@@ -210,16 +199,10 @@ class Viewer:
         self._log_trajectory(item.trajectory, item.n_trajectory, final=o is None)
         self._log_plots(o, item)
 
-    def _log_augmented(self, a: _ArFrame) -> None:
-        """The augmented frame on the camera's timelines: JPEG like the camera image, or the exact BGR pixels."""
-        c = self.cfg
+    def _log_augmented(self, a: ArFrame) -> None:
+        """The augmented frame (encoded by the AR worker) on the camera's timelines."""
         self._set_time(a.index, a.timestamp)
-        if c.ar_image_lossless:
-            self._emit(AUGMENTED_IMAGE, rr.Image(a.bgr, color_model="BGR"))
-            return
-        ok, jpeg = cv2.imencode(".jpg", a.bgr, [cv2.IMWRITE_JPEG_QUALITY, c.jpeg_quality])
-        if ok:
-            self._emit(AUGMENTED_IMAGE, rr.EncodedImage(contents=jpeg.tobytes(), media_type="image/jpeg"))
+        self._emit(AUGMENTED_IMAGE, a.image)
 
     def _log_frame(self, o, item: _Item) -> None:
         c = self.cfg
@@ -272,6 +255,8 @@ class Viewer:
             self._emit("world/points", rr.Points3D(np.zeros((0, 3))))
             return
         good = snap.good_point_indices
+        rays = good[snap.ray[good]]
+        good = good[~snap.ray[good]]
         self._emit(
             "world/points",
             rr.Points3D(
@@ -279,6 +264,11 @@ class Viewer:
                 colors=palette.level_colours(snap.source_level[good]),
                 radii=rr.Radius.ui_points(c.point_radius_ui),
             ),
+        )
+        # Panorama rays have no depth: drawn where they meet the keyframe's mean depth, in the panorama's colour.
+        self._emit(
+            "world/panorama_rays",
+            rr.Points3D(snap.X[rays], colors=palette.PANORAMA_COLOUR, radii=rr.Radius.ui_points(c.point_radius_ui)),
         )
         n_old = len(self._kf_logged)
         T_wc = np.linalg.inv(snap.kf_T_cw)
@@ -297,7 +287,7 @@ class Viewer:
                         principal_point=pp,
                         resolution=size,
                         image_plane_distance=c.frustum_depth,
-                        color=palette.KEYFRAME_COLOUR,
+                        color=palette.PANORAMA_COLOUR if keyframes[i].panorama else palette.KEYFRAME_COLOUR,
                     ),
                     rr.Image(keyframes[i].pyramid.levels[level]),
                 )
@@ -345,6 +335,8 @@ class Viewer:
         snap = item.snapshot
         if o is not None and o.result is not None:
             self._emit("plots/tracking/tracking_ms", rr.Scalars(o.result.timings.total))
+            # Gauglitz et al. §4.2: 1 while the rotation-only model is chosen, 0 for the general pose.
+            self._emit("plots/model/rotation_only", rr.Scalars(float(o.result.pose_model == PoseModel.ROTATION)))
         self._emit("plots/map/points", rr.Scalars(snap.n_points if snap is not None else 0))
         self._emit("plots/keyframes/keyframes", rr.Scalars(snap.n_keyframes if snap is not None else 0))
         self._emit("plots/mapper/queue", rr.Scalars(item.mapper_queue))

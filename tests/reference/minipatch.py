@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 
-def minipatch_find_ref(src, src_xy, dst, dst_xy, corners, radius, half, max_ssd):
+def minipatch_find_ref(src, src_xy, dst, dst_xy, corners, radius, half, max_ssd, zero_mean=False):
     """Numpy reference: all corners × all templates, SSD by broadcasting."""
     n = len(src_xy)
     found = np.zeros((n, 2), dtype=np.int32)
@@ -27,7 +27,10 @@ def minipatch_find_ref(src, src_xy, dst, dst_xy, corners, radius, half, max_ssd)
         cand = d2 <= radius * radius
         if not cand.any():
             continue
-        ssd = ((cp[cand] - t) ** 2).sum(axis=(1, 2))
+        d = cp[cand] - t
+        ssd = (d**2).sum(axis=(1, 2)).astype(np.float64)
+        if zero_mean:
+            ssd = ssd - d.sum(axis=(1, 2)) ** 2 / d[0].size
         j = int(np.argmin(ssd))
         if ssd[j] < max_ssd:
             found[i] = c[cand][j]

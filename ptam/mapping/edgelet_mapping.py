@@ -1,0 +1,338 @@
+"""New edgelets for a new keyframe, and measurements of the map's edgelets in keyframes (Agility §4.3, §5.2).
+
+``integrate_keyframe`` is the mapper's one edgelet job per (non-panorama) keyframe k:
+
+1. the map's edgelets are projected into k and measured there (§4.2; §4.4: "more measurements are attempted in
+   ... all keyframes subsequently added");
+2. candidates are extracted in k away from the edgelets it measures (``extract_candidates``);
+3. each candidate's viewing ray, cut to k's depth prior as PTAM cuts a point's (``epipolar.py``: z in
+   [max(w, mean − σ), min(40·w, mean + σ)], w the initial baseline), is projected into the target keyframe t
+   as a piecewise-linear curve through the lens, evenly spaced in inverse depth, and sampled every
+   ``epipolar_step_px``; every run of maximal edgels (Canny without hysteresis) it crosses is a match;
+4. matches are culled by polarity (the light side of the source line's back-projected plane must project to the
+   light side of the target gradient) and by the angle between the edge and the epipolar curve; the rest are
+   measured in t (§4.2), triangulated (``triangulate_edgelets``) and checked in a third keyframe
+   (``verify_edgelets``); a candidate becomes an edgelet only if exactly one hypothesis passes (hypotheses whose
+   target measurements lie within ``hypothesis_merge_px`` are one);
+5. new edgelets are refined on their three measurements with the poses fixed (the edgelet blocks of §4.4) and
+   measured in every other keyframe;
+
+and every measurement adds its row to the keyframe's visibility table (§5.2), which the tracker reads.
+Candidates lost to the aperture problem are not retried with another keyframe (§4.3's second target).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass, fields
+from typing import TYPE_CHECKING
+
+import cv2
+import numpy as np
+
+from ..edgelet import (
+    EdgeletObservations,
+    Edgelets,
+    LineMeasurements,
+    build_visibility_table,
+    canny_edgels,
+    extract_candidates,
+    line_planes,
+    measure_in_keyframe,
+    perp,
+    project_edgelets,
+    refine_edgelets,
+    triangulate_edgelets,
+    verify_edgelets,
+)
+from ..geometry import se3
+
+if TYPE_CHECKING:
+    from ..camera.model import CameraModel
+    from ..config import Config
+    from ..map.map import Map
+
+
+@dataclass(frozen=True)
+class EdgeletJob:
+    """What one keyframe's edgelet job did: measurements of existing edgelets, candidates, matches measured
+    in the target, edgelets added, and its wall time (ms)."""
+
+    remeasured: int = 0
+    candidates: int = 0
+    hypotheses: int = 0
+    added: int = 0
+    ms: float = 0.0
+
+
+@dataclass(frozen=True)
+class _Hits:
+    """Matches on the epipolar curves: candidate index, target pixel, source depth z, unit curve tangent."""
+
+    cand: np.ndarray
+    uv: np.ndarray
+    z: np.ndarray
+    tangent: np.ndarray
+
+
+def _keep(h: _Hits, mask: np.ndarray) -> _Hits:
+    return _Hits(h.cand[mask], h.uv[mask], h.z[mask], h.tangent[mask])
+
+
+def _take(m: LineMeasurements, idx) -> LineMeasurements:
+    return LineMeasurements(*(getattr(m, f.name)[idx] for f in fields(m)))
+
+
+def _image(m: Map, k: int) -> np.ndarray:
+    return m.keyframes[k].pyramid.levels[0]
+
+
+def _inside(uv: np.ndarray, shape: tuple, border: float) -> np.ndarray:
+    h, w = shape
+    return (uv[:, 0] >= border) & (uv[:, 1] >= border) & (uv[:, 0] <= w - 1 - border) & (uv[:, 1] <= h - 1 - border)
+
+
+def measure_edgelets_in(m: Map, camera: CameraModel, cfg: Config, k: int, ids: np.ndarray) -> int:
+    """Project edgelets ``ids`` into keyframe k, measure them (§4.2) and record the found ones with their
+    visibility-table rows (§5.2); returns how many were found."""
+    if len(ids) == 0:
+        return 0
+    e = cfg.edgelets
+    ed = Edgelets(m.edgelets.view("centre")[ids], m.edgelets.view("direction")[ids], m.edgelets.view("normal")[ids])
+    p = project_edgelets(camera, m.kf_T_cw[k], ed)
+    img = _image(m, k)
+    sel = np.flatnonzero(p.valid & _inside(p.centre, img.shape, e.candidate_border_px))
+    if len(sel) == 0:
+        return 0
+    meas = measure_in_keyframe(img, p.centre[sel], p.direction[sel], p.normal[sel], e)
+    ok = sel[meas.ok]
+    _record(m, cfg, k, ids[ok], meas.a[meas.ok], meas.b[meas.ok])
+    return len(ok)
+
+
+def _record(m: Map, cfg: Config, k: int, ids: np.ndarray, a: np.ndarray, b: np.ndarray) -> None:
+    if len(ids) == 0:
+        return
+    m.add_edgelet_measurements(k, ids, a, b)
+    t = build_visibility_table(_image(m, k), a, perp(b), cfg.edgelets)
+    m.add_edgelet_table_rows(k, ids, t.visible, t.r_search, t.t_min, t.max_blur)
+
+
+def _unmeasured(m: Map, k: int) -> np.ndarray:
+    """Good edgelets that keyframe k does not measure."""
+    seen = np.zeros(m.edgelets.n_total, bool)
+    seen[m.edgelets.view("meas_edgelet")[m.edgelets.view("meas_kf") == k]] = True
+    return np.flatnonzero(~seen & ~m.edgelets.view("bad"))
+
+
+def check_keyframe(m: Map, k: int, t: int) -> int:
+    """The third keyframe of §4.3: the nearest to k by camera centre other than k and t, with a baseline (not a
+    panorama keyframe); -1 when there is none."""
+    c = m.camera_centres
+    d = np.linalg.norm(c - c[k], axis=1)
+    d[[k, t]] = np.inf
+    d[[kf.panorama for kf in m.keyframes]] = np.inf
+    j = int(np.argmin(d))
+    return j if np.isfinite(d[j]) else -1
+
+
+def integrate_keyframe(m: Map, camera: CameraModel, cfg: Config, k: int, t: int) -> EdgeletJob:
+    """The edgelet job for new keyframe k with target keyframe t (the mapper's closest keyframe)."""
+    start = time.perf_counter()
+    job = _integrate(m, camera, cfg, k, t)
+    return dataclasses.replace(job, ms=1e3 * (time.perf_counter() - start))
+
+
+def _integrate(m: Map, camera: CameraModel, cfg: Config, k: int, t: int) -> EdgeletJob:
+    old = _unmeasured(m, k)
+    remeasured = measure_edgelets_in(m, camera, cfg, k, old)
+    refine_measured(m, camera, cfg, old)
+    c = check_keyframe(m, k, t)
+    if c < 0:
+        return EdgeletJob(remeasured)
+    e = cfg.edgelets
+    measured = m.edgelets.view("meas_kf") == k
+    existing = m.edgelets.view("meas_a")[measured]
+    cand = extract_candidates(_image(m, k), e, existing)
+    if len(cand) == 0:
+        return EdgeletJob(remeasured)
+    src = measure_in_keyframe(_image(m, k), cand.centre, cand.direction, cand.normal, e)
+    src = _take(src, np.flatnonzero(src.ok))
+    hits = _epipolar_hits(m, camera, cfg, k, t, src)
+    hits = _cull(m, camera, k, t, src, hits, e)
+    tgt = _measure_hits(m, t, hits, e)
+    hits, tgt = _keep(hits, tgt.ok), _take(tgt, tgt.ok)
+    T = m.kf_T_cw
+    tri = triangulate_edgelets(camera, T[k], _take(src, hits.cand), T[t], tgt, e)
+    ver = verify_edgelets(camera, T[c], _image(m, c), tri.edgelets, e)
+    one = _single_hypotheses(hits.cand, tgt.a, tri.ok & ver.ok, e.hypothesis_merge_px)
+    added = _add(m, camera, cfg, (k, t, c), tri.edgelets.subset(one), (_take(src, hits.cand[one]), tgt, ver), one)
+    return EdgeletJob(remeasured, len(src.a), len(hits.cand), added)
+
+
+def refine_measured(m: Map, camera: CameraModel, cfg: Config, ids: np.ndarray) -> None:
+    """Re-estimate edgelets ``ids`` from all their keyframe measurements with the poses fixed (the edgelet
+    blocks of §4.4's bundle adjustment), so that an edgelet gains from every keyframe that measures it."""
+    st = m.edgelets
+    sel = np.zeros(st.n_total, bool)
+    sel[ids] = True
+    use = sel[st.view("meas_edgelet")]
+    if not use.any():
+        return
+    ids = np.unique(st.view("meas_edgelet")[use])
+    local = np.searchsorted(ids, st.view("meas_edgelet")[use])
+    obs = EdgeletObservations(st.view("meas_kf")[use], local, st.view("meas_a")[use], st.view("meas_b")[use])
+    ed = Edgelets(st.view("centre")[ids], st.view("direction")[ids], st.view("normal")[ids])
+    ed = refine_edgelets(camera, m.kf_T_cw, ed, obs, cfg.edgelets, cfg.edgelets.refine_iterations)
+    ok = np.all(np.isfinite(ed.centre), axis=1) & np.all(np.isfinite(ed.direction), axis=1)
+    m.set_edgelets(ids[ok], ed.centre[ok], ed.direction[ok], ed.normal[ok])
+
+
+def _depth_range(m: Map, cfg: Config, k: int) -> tuple[float, float]:
+    kf = m.keyframes[k]
+    w = cfg.init.baseline_m
+    near = max(w, kf.scene_depth_mean - kf.scene_depth_sigma)
+    return near, min(cfg.mapper.epipolar_far_depth_mult * w, kf.scene_depth_mean + kf.scene_depth_sigma)
+
+
+def _epipolar_hits(m: Map, camera: CameraModel, cfg: Config, k: int, t: int, src: LineMeasurements) -> _Hits:
+    """Runs of maximal edgels along each candidate's epipolar curve in keyframe t (step 3)."""
+    e = cfg.edgelets
+    near, far = _depth_range(m, cfg, k)
+    z = 1.0 / np.linspace(1.0 / near, 1.0 / far, e.epipolar_vertices) if far > near else np.zeros(0)
+    n, v = len(src.a), len(z)
+    if n == 0 or v < 2:
+        return _Hits(np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(0), np.zeros((0, 2)))
+    ray = np.concatenate([camera.unproject(src.a), np.ones((n, 1))], axis=1)
+    T_ts = m.kf_T_cw[t] @ se3.inv(m.kf_T_cw[k])
+    Xt = (ray[:, None, :] * z[None, :, None]) @ T_ts[:3, :3].T + T_ts[:3, 3]
+    front = camera.valid(Xt.reshape(-1, 3)).reshape(n, v)
+    uv = camera.project(np.where(front[..., None], Xt, 1.0).reshape(-1, 3)).reshape(n, v, 2)
+    seg = np.diff(uv, axis=1)
+    length = np.linalg.norm(seg, axis=2)
+    seg_ok = front[:, 1:] & front[:, :-1] & np.isfinite(length)
+    length = np.where(seg_ok, np.minimum(length, np.hypot(*_image(m, t).shape)), 0.0)
+    cand, j, frac = _curve_samples(length, e.epipolar_step_px)
+    pts = uv[cand, j] + frac[:, None] * seg[cand, j]
+    inv_z = 1.0 / z[j] + frac * (1.0 / z[j + 1] - 1.0 / z[j])
+    tangent = seg[cand, j] / np.maximum(length[cand, j], np.finfo(float).tiny)[:, None]
+    maximal = canny_edgels(_image(m, t), e)[1]
+    if e.epipolar_dilate_px:
+        maximal = cv2.dilate(maximal, np.ones((2 * e.epipolar_dilate_px + 1,) * 2, np.uint8))
+    hit = seg_ok[cand, j] & _inside(pts, maximal.shape, e.candidate_border_px)
+    ix = np.round(np.where(hit[:, None], pts, 0.0)).astype(np.int64)
+    hit &= maximal[ix[:, 1], ix[:, 0]] > 0
+    mid = _run_middles(cand, hit)
+    return _Hits(cand[mid], pts[mid], 1.0 / inv_z[mid], tangent[mid])
+
+
+def _curve_samples(length: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Points every ``step`` along each row's polyline of segment lengths (n, s): row, segment, fraction."""
+    n, s = length.shape
+    cum = np.cumsum(length, axis=1)
+    total = cum[:, -1]
+    count = np.floor(total / step).astype(np.int64) + 1
+    cand = np.repeat(np.arange(n), count)
+    start = np.concatenate([[0], np.cumsum(count)[:-1]])
+    arc = (np.arange(len(cand)) - start[cand]) * step
+    # One searchsorted over all rows: row i's cumulative lengths are shifted past every earlier row's.
+    shift = (np.arange(n) * (total.max(initial=0.0) + 1.0))[:, None]
+    j = np.searchsorted((cum + shift).ravel(), arc + shift[cand, 0], side="right") - cand * s
+    j = np.clip(j, 0, s - 1)
+    before = np.where(j > 0, cum[cand, np.maximum(j - 1, 0)], 0.0)
+    frac = (arc - before) / np.maximum(length[cand, j], np.finfo(float).tiny)
+    return cand, j, np.clip(frac, 0.0, 1.0)
+
+
+def _run_middles(cand: np.ndarray, hit: np.ndarray) -> np.ndarray:
+    """Index of the middle sample of every run of consecutive hits of one candidate."""
+    prev = np.concatenate([[False], hit[:-1] & (cand[1:] == cand[:-1])])
+    start = hit & ~prev
+    run = np.cumsum(start) - 1
+    idx = np.flatnonzero(hit)
+    if len(idx) == 0:
+        return idx
+    first = np.full(run[idx].max() + 1, len(hit))
+    np.minimum.at(first, run[idx], idx)
+    last = np.zeros_like(first)
+    np.maximum.at(last, run[idx], idx)
+    return (first + last) // 2
+
+
+def _gradient(img: np.ndarray, uv: np.ndarray, cfg) -> np.ndarray:
+    """Sobel gradient (N, 2) of the Canny-smoothed image at the nearest pixels to ``uv``."""
+    s = cfg.canny_blur_sigma
+    sm = cv2.GaussianBlur(img, (0, 0), s) if s > 0 else img
+    ix = np.round(uv).astype(np.int64)
+    gx = cv2.Sobel(sm, cv2.CV_32F, 1, 0, ksize=3)[ix[:, 1], ix[:, 0]]
+    gy = cv2.Sobel(sm, cv2.CV_32F, 0, 1, ksize=3)[ix[:, 1], ix[:, 0]]
+    return np.stack([gx, gy], axis=-1).astype(np.float64)
+
+
+def _cull(m: Map, camera: CameraModel, k: int, t: int, src: LineMeasurements, hits: _Hits, e) -> _Hits:
+    """Step 4's heuristics: the target gradient must have the candidate's polarity and cross the epipolar curve
+    at no less than ``epipolar_min_angle_deg``."""
+    if len(hits.cand) == 0:
+        return hits
+    g = _gradient(_image(m, t), hits.uv, e)
+    gn = np.linalg.norm(g, axis=1)
+    g_hat = g / np.maximum(gn, np.finfo(float).tiny)[:, None]
+    crossing = np.abs(np.sum(g_hat * hits.tangent, axis=1)) >= np.sin(np.deg2rad(e.epipolar_min_angle_deg))
+    T = m.kf_T_cw
+    plane, _ = line_planes(camera, T[k], src.a[hits.cand], src.b[hits.cand])
+    ray = np.concatenate([camera.unproject(src.a[hits.cand]), np.ones((len(hits.cand), 1))], axis=1)
+    Xk = ray * hits.z[:, None]
+    # The light side of the back-projected plane: the plane normal's image in k against the line's dark-to-light
+    # normal; that side's image in t must be the gradient's side.
+    light = np.einsum("nij,nj->ni", camera.project_jacobian(Xk), plane @ T[k][:3, :3].T)
+    side = np.sign(np.sum(light * perp(src.b[hits.cand]), axis=1))
+    Xt = se3.transform(T[t], se3.transform(se3.inv(T[k]), Xk))
+    light_t = np.einsum("nij,nj->ni", camera.project_jacobian(Xt), (plane @ T[t][:3, :3].T) * side[:, None])
+    return _keep(hits, (gn > 0) & crossing & (np.sum(light_t * g, axis=1) > 0) & (Xt[:, 2] > 0))
+
+
+def _measure_hits(m: Map, t: int, hits: _Hits, e) -> LineMeasurements:
+    """§4.2 measurements in t at the matches, along the edge their gradient shows (perp(b) dark → light)."""
+    img = _image(m, t)
+    n_hat = _gradient(img, hits.uv, e) if len(hits.cand) else np.zeros((0, 2))
+    n_hat = n_hat / np.maximum(np.linalg.norm(n_hat, axis=1), np.finfo(float).tiny)[:, None]
+    direction = np.stack([n_hat[:, 1], -n_hat[:, 0]], axis=1)  # perp(direction) = n_hat
+    return measure_in_keyframe(img, hits.uv, direction, n_hat, e)
+
+
+def _single_hypotheses(cand: np.ndarray, tgt_a: np.ndarray, ok: np.ndarray, merge_px: float) -> np.ndarray:
+    """Indices of the passing hypotheses that are their candidate's only one (§4.3), duplicates merged."""
+    idx = np.flatnonzero(ok)
+    if len(idx) == 0:
+        return idx
+    c = cand[idx]
+    first = np.full(c.max() + 1, -1)
+    uniq, at = np.unique(c, return_index=True)
+    first[uniq] = idx[at]  # the first passing hypothesis of each candidate
+    far = np.linalg.norm(tgt_a[idx] - tgt_a[first[c]], axis=1) > merge_px
+    rival = np.zeros(c.max() + 1, bool)
+    rival[c[far]] = True
+    return first[(first >= 0) & ~rival]
+
+
+def _add(m: Map, camera: CameraModel, cfg: Config, kfs: tuple, ed: Edgelets, meas: tuple, one: np.ndarray) -> int:
+    """Refine the new edgelets on their source, target and check measurements (poses fixed), add them with those
+    measurements, and measure them in every other keyframe (step 5)."""
+    n = len(one)
+    if n == 0:
+        return 0
+    src, tgt, ver = meas
+    lines = [(src.a, src.b), (tgt.a[one], tgt.b[one]), (ver.measurement.a[one], ver.measurement.b[one])]
+    kf = np.repeat(np.asarray(kfs), n)
+    local = np.tile(np.arange(n), len(kfs))
+    obs = EdgeletObservations(kf, local, np.concatenate([a for a, _ in lines]), np.concatenate([b for _, b in lines]))
+    ed = refine_edgelets(camera, m.kf_T_cw, ed, obs, cfg.edgelets, cfg.edgelets.refine_iterations)
+    good = np.all(np.isfinite(ed.centre), axis=1)
+    ids = m.add_edgelets(ed.centre[good], ed.direction[good], ed.normal[good], kfs[0])
+    for i, k in enumerate(kfs):
+        _record(m, cfg, k, ids, lines[i][0][good], lines[i][1][good])
+    for k in range(m.n_keyframes):
+        if k not in kfs:
+            measure_edgelets_in(m, camera, cfg, k, ids)
+    return len(ids)

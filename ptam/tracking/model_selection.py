@@ -1,0 +1,111 @@
+"""Per-frame choice between a general pose and a rotation-only one (Gauglitz et al. TVCG 2013 §4.2, §6.2).
+
+Both models are estimated by the tracker's M-estimator (Table 1): [R|t] from the found 3-D map points, when
+there are at least ``min_sfm_points`` (Gauglitz §4.2: "a SfM group which contains sufficiently many of the
+successfully tracked features"), and the rotation-only model from all found features, map points and panorama
+rays (which constrain the rotation only), as [R|t ≤ t_max] about the nearest keyframe's centre (§6.2: [R|0]
+itself is "rarely selected", since a real camera never keeps its centre exactly still). t_max is the translation
+at which the panorama's rays, projected from the keyframe's centre, would leave the tracker's fine search
+radius: α_max = r_fine / f, t_max = α_max · depth.
+
+For each model, expectation-maximisation estimates the measurement σ and the inlier ratio γ (§4.2: Gaussian
+inliers, outliers uniform over the search region), and GRIC (eq. 12, Table 2: k = 6 for [R|t], 3 for [R|0],
+D − d = 2, c/v = 1/S² for both) scores it on the same data, every found feature; the lower score wins.
+Rays keep the rotation-only model's weights either way (the mapper counts them as seen or not).
+Errors are in units of the measurement's pyramid scale (σ = 2^level level-0 pixels, PTAM §5.4).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..config import ModelSelectionConfig, TrackerConfig
+from ..vocabulary import PoseModel
+from .pose_update import update_pose
+
+K_GENERAL, K_ROTATION = 6, 3  # Gauglitz et al. Table 2: parameters of [R|t] and [R|0]
+ERROR_DIM = 2  # Table 2: D − d_m, a 2-D reprojection error for both absolute pose models
+
+
+@dataclass(frozen=True)
+class ModelChoice:
+    """The chosen model, its pose and the Tukey weights of every measurement, and both GRIC scores (NaN when
+    [R|t] could not be estimated: too few 3-D points)."""
+
+    model: PoseModel
+    T_cw: np.ndarray
+    weights: np.ndarray
+    gric_general: float
+    gric_rotation: float
+
+
+def em_noise(e2: np.ndarray, search_area: float, cfg: ModelSelectionConfig) -> tuple[float, float]:
+    """σ² and inlier ratio γ of squared 2-D errors ``e2`` by EM (Gauglitz §4.2): a mixture of Gaussian inliers
+    and outliers uniform over ``search_area``, clamped (§8.1)."""
+    lo, hi = cfg.inlier_ratio_bounds
+    floor = cfg.min_sigma**2
+    sigma2 = max(float(np.median(e2)) / (2.0 * math.log(2.0)), floor)  # median of a 2-dof χ² is 2 ln 2 σ²
+    gamma = 0.5 * (lo + hi)
+    for _ in range(cfg.em_iterations):
+        p_in = gamma * np.exp(-e2 / (2.0 * sigma2)) / (2.0 * math.pi * sigma2)
+        p_out = (1.0 - gamma) / search_area
+        r = p_in / (p_in + p_out)
+        gamma = min(max(float(r.mean()), lo), hi)
+        sigma2 = max(float((r * e2).sum() / (ERROR_DIM * max(r.sum(), 1e-12))), floor)
+    return sigma2, gamma
+
+
+def gric(e2: np.ndarray, sigma2: float, gamma: float, search_area: float, k: int) -> float:
+    """Gauglitz et al. eq. (12) with T_m of eq. (11), for an absolute pose model (c_m/v = 1/S², the model volume
+    V cancels between the two models)."""
+    n = len(e2)
+    log_noise = ERROR_DIM * math.log(2.0 * math.pi * sigma2)
+    t_m = 2.0 * math.log(gamma / (1.0 - gamma) * search_area) - log_noise
+    rho = np.minimum(e2 / sigma2, t_m)
+    return float(rho.sum() + n * (log_noise - 2.0 * math.log(gamma)) + k * math.log(n))
+
+
+def select_pose_model(
+    camera,
+    tcfg: TrackerConfig,
+    cfg: ModelSelectionConfig,
+    T_cw: np.ndarray,
+    X: np.ndarray,
+    Xw: np.ndarray,
+    xy: np.ndarray,
+    level: np.ndarray,
+    fixed_sigma: bool,
+    c_ref: np.ndarray,
+    t_max: float,
+) -> ModelChoice:
+    """Estimate [R|t ≤ t_max] from all features (X, Xw homogeneous: Xw = 0 for rays) and [R|t] from the map
+    points, starting at ``T_cw``; keep the model with the lower GRIC on all of them."""
+    cam = camera.kernel_params()
+    T_rot, w_rot = update_pose(cam, tcfg, T_cw, X, xy, level, False, fixed_sigma, Xw, c_ref, t_max)
+    sfm = Xw > 0
+    if np.count_nonzero(sfm) < cfg.min_sfm_points:
+        return ModelChoice(PoseModel.ROTATION, T_rot, w_rot, math.nan, math.nan)
+    T_gen, w_sfm = update_pose(cam, tcfg, T_cw, X[sfm], xy[sfm], level[sfm], False, fixed_sigma)
+    area = (2.0 * tcfg.fine_radius_px) ** 2  # Table 2: S × S, the search region, in the errors' level units
+    scores = []
+    for T, k in ((T_gen, K_GENERAL), (T_rot, K_ROTATION)):
+        e2 = _scaled_sq_errors(camera, T, X, Xw, xy, level, area)
+        scores.append(gric(e2, *em_noise(e2, area, cfg), area, k))
+    if scores[1] <= scores[0]:
+        return ModelChoice(PoseModel.ROTATION, T_rot, w_rot, scores[0], scores[1])
+    w_gen = w_rot.copy()  # rays keep their rotation-only weights: the mapper counts them as seen
+    w_gen[sfm] = w_sfm
+    return ModelChoice(PoseModel.GENERAL, T_gen, w_gen, scores[0], scores[1])
+
+
+def _scaled_sq_errors(camera, T_cw, X, Xw, xy, level, outside: float) -> np.ndarray:
+    """Squared reprojection errors of homogeneous features in units of each measurement's σ; a point behind the
+    camera counts as an error the size of the search region."""
+    Xc = X @ T_cw[:3, :3].T + Xw[:, None] * T_cw[:3, 3]
+    front = Xc[:, 2] > 0
+    e2 = np.full(len(X), outside)
+    e2[front] = ((camera.project(Xc[front]) - xy[front]) ** 2).sum(axis=1) * np.exp2(-2.0 * level[front])
+    return e2

@@ -1,0 +1,118 @@
+"""Agility §4.1–§4.2, §5.1: the edgelet frame, its 4-DOF update, projection and the tracking Jacobian."""
+
+import numpy as np
+import pytest
+
+from ptam.edgelet.edgelet import Edgelets, frames_from_first_view, perp
+from ptam.edgelet.edgelet_projection import blur_lengths, perpendicular_pose_jacobian, project_edgelets
+from ptam.geometry import se3
+from tests.support.cameras import CAMERAS
+
+
+def random_edgelets(rng, n, centre=(0.0, 0.0, 2.0), spread=0.4):
+    c = np.asarray(centre) + rng.uniform(-spread, spread, (n, 3))
+    d = rng.normal(size=(n, 3))
+    x = rng.normal(size=(n, 3))
+    return Edgelets(c, d, x).orthonormalised()
+
+
+def random_pose(rng, rot=0.1, trans=0.1):
+    return se3.exp(np.concatenate([rng.uniform(-trans, trans, 3), rng.uniform(-rot, rot, 3)]))
+
+
+def test_frames_are_right_handed_and_round_trip():
+    e = random_edgelets(np.random.default_rng(0), 50)
+    E = e.frames()
+    R = E[:, :3, :3]
+    assert np.allclose(R @ np.swapaxes(R, 1, 2), np.eye(3), atol=1e-12) and np.allclose(np.linalg.det(R), 1.0)
+    assert np.allclose(E[:, :3, 2], e.direction) and np.allclose(E[:, :3, 0], e.normal)
+    back = Edgelets.from_frames(E)
+    assert np.allclose(back.centre, e.centre) and np.allclose(back.direction, e.direction)
+    assert np.allclose(e.updated(np.zeros((50, 4))).frames(), E, atol=1e-15)
+
+
+def test_four_dof_update_moves_only_perpendicular_and_stays_orthonormal():
+    rng = np.random.default_rng(1)
+    e = random_edgelets(rng, 40)
+    t = rng.uniform(-0.01, 0.01, (40, 2))
+    moved = e.updated(np.concatenate([t, np.zeros((40, 2))], axis=1))
+    # Pure translations move the centre along x (normal) and y (binormal) only; the axes stay.
+    assert np.allclose(moved.centre - e.centre, t[:, :1] * e.normal + t[:, 1:] * e.binormal, atol=1e-15)
+    assert np.allclose(moved.direction, e.direction) and np.allclose(moved.normal, e.normal)
+    # A rotation about x by w turns the direction towards −y: z' = cos w z − sin w y.
+    w = rng.uniform(-0.3, 0.3, 40)
+    rot = e.updated(np.stack([0 * w, 0 * w, w, 0 * w], axis=1))
+    expect = np.cos(w)[:, None] * e.direction - np.sin(w)[:, None] * e.binormal
+    assert np.allclose(rot.direction, expect, atol=1e-12) and np.allclose(rot.centre, e.centre)
+    # Many random updates: the frame stays exactly orthonormal (re-orthonormalised each time).
+    for _ in range(200):
+        e = e.updated(rng.normal(0, 0.2, (40, 4)))
+    R = e.frames()[:, :3, :3]
+    assert np.abs(R @ np.swapaxes(R, 1, 2) - np.eye(3)).max() < 1e-14
+
+
+@pytest.mark.parametrize("name", list(CAMERAS))
+def test_projection_direction_is_the_derivative_along_the_edgelet(name):
+    cam = CAMERAS[name]
+    rng = np.random.default_rng(2)
+    e = random_edgelets(rng, 100)
+    T = random_pose(rng)
+    p = project_edgelets(cam, T, e)
+    assert p.valid.all()
+    h = 1e-6
+    Xp = se3.transform(T, e.centre + h * e.direction)
+    Xm = se3.transform(T, e.centre - h * e.direction)
+    d_fd = (cam.project(Xp) - cam.project(Xm)) / (2 * h)
+    assert np.allclose(p.direction, d_fd, rtol=1e-6, atol=1e-4)
+    assert np.allclose(p.centre, cam.project(se3.transform(T, e.centre)))
+    assert np.allclose(p.normal, perp(p.unit_direction)) and np.allclose(np.linalg.norm(p.normal, axis=1), 1.0)
+
+
+@pytest.mark.parametrize("name", list(CAMERAS))
+def test_polarity_follows_the_first_view(name):
+    """Frames built from a first view keep the dark-to-light side: in another view on the same side of the
+    edgelet, the projected x-axis (dark -> light in space) lies on the side of ``perp(d)``."""
+    cam = CAMERAS[name]
+    rng = np.random.default_rng(3)
+    e = random_edgelets(rng, 200)
+    T0 = random_pose(rng)
+    p0 = project_edgelets(cam, T0, e)
+    n_img = p0.normal * rng.choice([-1.0, 1.0], (200, 1))  # the measured polarity in the first view
+    J0 = cam.project_jacobian(p0.camera_centre)
+    f = frames_from_first_view(e.centre, e.direction, T0, n_img, J0)
+    assert np.allclose(project_edgelets(cam, T0, f).normal, n_img)
+    T1 = random_pose(rng, rot=0.1, trans=0.05) @ T0
+    p1 = project_edgelets(cam, T1, f)
+    x_img = np.einsum("nij,nj->ni", cam.project_jacobian(p1.camera_centre), f.normal @ T1[:3, :3].T)
+    assert np.all(np.sum(x_img * p1.normal, axis=1) > 0)
+
+
+@pytest.mark.parametrize("name", list(CAMERAS))
+def test_tracking_jacobian_matches_finite_differences(name):
+    cam = CAMERAS[name]
+    rng = np.random.default_rng(4)
+    e = random_edgelets(rng, 60)
+    T = random_pose(rng)
+    J = perpendicular_pose_jacobian(cam, T, e)
+    p = project_edgelets(cam, T, e)
+    h = 1e-6
+    fd = np.zeros_like(J)
+    for k in range(6):
+        mu = np.zeros(6)
+        mu[k] = h
+        up = cam.project(se3.transform(se3.exp(mu) @ T, e.centre))
+        dn = cam.project(se3.transform(se3.exp(-mu) @ T, e.centre))
+        fd[:, k] = np.sum(p.normal * (up - dn), axis=1) / (2 * h)
+    assert np.abs(J - fd).max() < 1e-4 * np.abs(fd).max()
+
+
+def test_blur_length_of_a_sideways_slide():
+    """A vertical edge 2 m ahead, the camera sliding 1 cm along x during the exposure: l = f·0.01/2 px (eq. 10)."""
+    cam = CAMERAS["pinhole"]
+    e = Edgelets(np.array([[0.0, 0.0, 2.0]]), np.array([[0.0, 1.0, 0.0]]), np.array([[1.0, 0.0, 0.0]]))
+    J = perpendicular_pose_jacobian(cam, np.eye(4), e)
+    gamma = np.array([0.01, 0.0, 0.0, 0.0, 0.0, 0.0])
+    assert np.isclose(blur_lengths(J, gamma)[0], cam.fx * 0.01 / 2.0, rtol=1e-9)
+    assert np.isclose(blur_lengths(J, np.array([0, 0.01, 0, 0, 0, 0.0]))[0], 0.0, atol=1e-12)  # along the edge
+    # A small pan about y moves the image by ~f·ω px.
+    assert np.isclose(blur_lengths(J, np.array([0, 0, 0, 0, 0.02, 0.0]))[0], cam.fx * 0.02, rtol=1e-9)
