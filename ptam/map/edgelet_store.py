@@ -81,8 +81,8 @@ class EdgeletStore:
 
     def append_table(self, kf: int, ids, visible, r_search, t_min, max_blur) -> None:
         """Add rows (edgelet ids, their per-blur visible / r_search / t_min, max blur) to keyframe ``kf``'s table."""
-        new = (np.asarray(ids, np.int64), np.asarray(visible, bool), np.asarray(r_search), np.asarray(t_min))
-        new += (np.asarray(max_blur),)
+        new: tuple[np.ndarray, ...] = (np.asarray(ids, np.int64), np.asarray(visible, bool), np.asarray(r_search))
+        new += (np.asarray(t_min), np.asarray(max_blur))
         old = self.tables.get(kf)
         rows = new if old is None else tuple(np.concatenate([o, x]) for o, x in zip(old, new))
         for a in rows:

@@ -9,6 +9,8 @@ return read-only views of the live arrays, valid until the next mutation.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from ..errors import PtamError
@@ -315,15 +317,15 @@ class Map:
             T.setflags(write=False)
             good = np.flatnonzero(~P.data["bad"][: P.n])
             good.setflags(write=False)
+            columns: dict[str, Any] = {k: P.copy(k) for k in _POINT_FIELDS}
+            columns.update({k: M.copy(k) for k in _MEAS_FIELDS}, **self.edgelets.snapshot_fields())
             self._snapshot = MapSnapshot(
                 version=self.version,
                 keyframes=tuple(self.keyframes),
                 kf_T_cw=T,
                 kf_images=tuple(self._frozen_stack(s) for s in self._kf_images),
-                **{k: P.copy(k) for k in _POINT_FIELDS},
-                **{k: M.copy(k) for k in _MEAS_FIELDS},
                 good_point_indices=good,
-                **self.edgelets.snapshot_fields(),
+                **columns,
             )
         return self._snapshot
 

@@ -309,6 +309,7 @@ class System(Initialisation):
         so a panorama group shares one centre instead of drifting by up to t_max per keyframe; the first of a
         group keeps the centre tracked against the 3-D map."""
         snap = self.mapper.snapshot
+        assert snap is not None  # a keyframe is only requested against a map
         d = np.linalg.norm(snap.camera_centres - se3.inv(T_cw)[:3, 3], axis=1)
         nearest = int(np.argmin(d))
         if not snap.keyframes[nearest].panorama:
