@@ -117,10 +117,11 @@ def test_atomic_write_leaves_the_previous_file_when_a_write_fails(tmp_path):
 
 
 def test_sighup_is_handled_like_sigterm():
+    before = signal.getsignal(signal.SIGHUP)  # SIG_DFL, or SIG_IGN under nohup: whatever it was comes back
     with _StopRequest() as stop:
         assert signal.SIGHUP in STOP_SIGNALS
         assert signal.getsignal(signal.SIGHUP) == signal.getsignal(signal.SIGTERM) == stop._handle
-    assert signal.getsignal(signal.SIGHUP) == signal.SIG_DFL
+    assert signal.getsignal(signal.SIGHUP) == before
 
 
 # -- paths checked before the first frame -------------------------------------------------------------------
