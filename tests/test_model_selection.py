@@ -61,7 +61,18 @@ def test_gric_tells_rotation_from_translation(cfg, name, move_cm, expected):
     t_max = cfg.tracker.fine_radius_px / camera.fx * 1.5
     T0 = se3.exp(np.array([0.0, 0.0, 0.0, 0.0, np.radians(2.5), 0.0]))
     choice = select_pose_model(
-        camera, cfg.tracker, cfg.model_selection, T0, X, np.ones(len(X)), xy, level, True, np.zeros(3), t_max
+        camera,
+        camera.kernel_params(),
+        cfg.tracker,
+        cfg.model_selection,
+        T0,
+        X,
+        np.ones(len(X)),
+        xy,
+        level,
+        True,
+        np.zeros(3),
+        t_max,
     )
     assert choice.model == expected
     err = se3.log(choice.T_cw @ se3.inv(T_true))
@@ -80,7 +91,18 @@ def test_rays_alone_give_a_rotation_about_the_keyframe_centre(cfg):
     xy = camera.project(se3.transform(T_true, X)) + rng.normal(scale=0.5, size=(len(X), 2)) * 2.0 ** level[:, None]
     T0 = se3.exp(np.array([0.0, 0.0, 0.0, 0.04, -0.21, 0.0]))
     choice = select_pose_model(
-        camera, cfg.tracker, cfg.model_selection, T0, X, np.zeros(len(X)), xy, level, True, np.zeros(3), 0.02
+        camera,
+        camera.kernel_params(),
+        cfg.tracker,
+        cfg.model_selection,
+        T0,
+        X,
+        np.zeros(len(X)),
+        xy,
+        level,
+        True,
+        np.zeros(3),
+        0.02,
     )
     assert choice.model == PoseModel.ROTATION and math.isnan(choice.gric_general)
     assert np.degrees(np.linalg.norm(se3.log(choice.T_cw @ se3.inv(T_true))[3:])) < 0.05

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..vocabulary import GroupKind
+from .keyframe import KeyFrame
 from .snapshot import MapSnapshot
 
 
@@ -27,7 +28,7 @@ class KeyframeGroup:
 def keyframe_groups(snapshot: MapSnapshot) -> list[KeyframeGroup]:
     """The SfM group, then one panorama group per SfM keyframe that panorama keyframes turn about (the SfM
     keyframe nearest to their centres)."""
-    pano = np.array([k.panorama for k in snapshot.keyframes], dtype=bool)
+    pano = KeyFrame.panorama_flags(snapshot.keyframes)
     sfm = np.flatnonzero(~pano)
     groups = [KeyframeGroup(GroupKind.SFM, tuple(sfm.tolist()))] if len(sfm) else []
     if not pano.any():

@@ -29,6 +29,11 @@ class KeyFrame:
     panorama: bool = False  # Gauglitz et al. §4.3: added under rotation-only motion, at its SfM neighbour's centre
 
     @staticmethod
+    def panorama_flags(keyframes) -> np.ndarray:
+        """(N,) bool: which of ``keyframes`` are panorama keyframes (Gauglitz et al. §4.3)."""
+        return np.array([kf.panorama for kf in keyframes], dtype=bool)
+
+    @staticmethod
     def depth_stats(depths: np.ndarray) -> tuple[float, float]:
         """(mean, standard deviation) of measured point depths, as PTAM computes them."""
         d = np.asarray(depths, dtype=np.float64)

@@ -129,12 +129,7 @@ def _unmeasured(m: Map, k: int) -> np.ndarray:
 def check_keyframe(m: Map, k: int, t: int) -> int:
     """The third keyframe of §4.3: the nearest to k by camera centre other than k and t, with a baseline (not a
     panorama keyframe); -1 when there is none."""
-    c = m.camera_centres
-    d = np.linalg.norm(c - c[k], axis=1)
-    d[[k, t]] = np.inf
-    d[[kf.panorama for kf in m.keyframes]] = np.inf
-    j = int(np.argmin(d))
-    return j if np.isfinite(d[j]) else -1
+    return m.nearest_with_baseline(k, exclude=(t,))
 
 
 def integrate_keyframe(m: Map, camera: CameraModel, cfg: Config, k: int, t: int) -> EdgeletJob:

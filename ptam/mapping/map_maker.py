@@ -204,11 +204,7 @@ class MapMaker:
 
     def closest_keyframe(self, k: int) -> int:
         """The nearest keyframe by camera centre with a baseline to k: panorama keyframes have none."""
-        c = self.map.camera_centres
-        d = np.linalg.norm(c - c[k], axis=1)
-        d[k] = np.inf
-        d[[kf.panorama for kf in self.map.keyframes]] = np.inf
-        return int(np.argmin(d))
+        return self.map.nearest_with_baseline(k)
 
     def add_some_map_points(self, k: int, level: int) -> int:
         """PTAM code ``AddSomeMapPoints``: thinned candidates of keyframe k, epipolar search in the closest."""
@@ -312,7 +308,7 @@ class MapMaker:
         fixed = np.zeros(n, bool)
         fixed[0] = True
         # Gauglitz et al. §5.2 adjusts SfM groups only: panorama keyframes keep their poses, rays are not used.
-        fixed |= np.array([kf.panorama for kf in m.keyframes])
+        fixed |= KeyFrame.panorama_flags(m.keyframes)
         use = ~m.ray[m.meas_pt]
         if recent and n < self.cfg.mapper.local_ba_min_keyframes:
             # Small maps: global adjustment covers everything (PTAM code).

@@ -70,6 +70,7 @@ def gric(e2: np.ndarray, sigma2: float, gamma: float, search_area: float, k: int
 
 def select_pose_model(
     camera,
+    cam,
     tcfg: TrackerConfig,
     cfg: ModelSelectionConfig,
     T_cw: np.ndarray,
@@ -82,8 +83,8 @@ def select_pose_model(
     t_max: float,
 ) -> ModelChoice:
     """Estimate [R|t ≤ t_max] from all features (X, Xw homogeneous: Xw = 0 for rays) and [R|t] from the map
-    points, starting at ``T_cw``; keep the model with the lower GRIC on all of them."""
-    cam = camera.kernel_params()
+    points, starting at ``T_cw``; keep the model with the lower GRIC on all of them. ``cam``: the camera's
+    kernel parameters (``camera.kernel_params()``, built once by the tracker)."""
     T_rot, w_rot = update_pose(cam, tcfg, T_cw, X, xy, level, False, fixed_sigma, Xw, c_ref, t_max)
     sfm = Xw > 0
     if np.count_nonzero(sfm) < cfg.min_sfm_points:

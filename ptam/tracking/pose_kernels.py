@@ -14,7 +14,8 @@ Points are homogeneous (X, w): w = 1 for a map point, w = 0 for a panorama featu
 within ``t_max`` of ``c_ref`` after every iteration: Gauglitz et al. §6.2's [R|t ≤ t_max], the rotation-only
 model relative to the previous keyframe.
 
-``pose_irls`` runs all iterations in one call; ``normal_equations`` and ``tukey_sigma_sq`` are its parts.
+``pose_irls_edgelets`` runs all iterations in one call (``pose_irls`` is it without edgelets); ``normal_equations``
+and ``tukey_sigma_sq`` are its parts.
 The ``*_ref`` functions are the numpy references.
 """
 
@@ -139,53 +140,28 @@ def pose_irls(
     inflate the median and clean data keeps its tight cut); 0 keeps the median throughout (PTAM §5.4). Returns
     the pose and the last weights (n,).
     """
-    n = X.shape[0]
-    T = T_cw.copy()
-    uv = np.zeros((n, 2))
-    J = np.zeros((n, 2, 6))
-    valid = np.zeros(n, dtype=np.bool_)
-    r = np.zeros((n, 2))
-    w = np.zeros(n)
-    err_sq = np.zeros(n)
-    mu = np.zeros(6)
-    for it in range(n_iters):
-        if it % relinearise_every == 0 or it == n_iters - 1:
-            _linearise(cam, T, X, Xw, uv, J, valid)
-        else:
-            for k in range(n):
-                for a in range(2):
-                    s = 0.0
-                    for b in range(6):
-                        s += J[k, a, b] * mu[b]
-                    uv[k, a] += s
-        m = 0
-        for k in range(n):
-            r[k, 0] = meas[k, 0] - uv[k, 0]
-            r[k, 1] = meas[k, 1] - uv[k, 1]
-            if valid[k]:
-                err_sq[m] = (r[k, 0] * r[k, 0] + r[k, 1] * r[k, 1]) * inv_sigma[k] * inv_sigma[k]
-                m += 1
-        if m == 0:
-            break
-        c2 = tukey_sigma_sq(err_sq[:m], min_sigma)
-        if override_sigma_sq > 0.0 and it > override_after:
-            c2 = min(c2, override_sigma_sq)
-        for k in range(n):
-            w[k] = 0.0
-            if valid[k]:
-                e2 = (r[k, 0] * r[k, 0] + r[k, 1] * r[k, 1]) * inv_sigma[k] * inv_sigma[k]
-                if e2 <= c2:
-                    q = 1.0 - e2 / c2
-                    w[k] = q * q
-        H, g = normal_equations(J, r, inv_sigma, w)
-        for a in range(6):
-            H[a, a] += prior
-        mu, ok = cholesky_solve(H, g, 6, 0.0)
-        if not ok:
-            break
-        T = se3_exp(mu) @ T
-        if t_max >= 0.0:
-            clamp_centre(T, c_ref, t_max)
+    none = np.zeros((0, 3))
+    flat = np.zeros((0, 2))
+    T, w, _ = pose_irls_edgelets(
+        cam,
+        T_cw,
+        X,
+        Xw,
+        meas,
+        inv_sigma,
+        none,
+        flat,
+        flat,
+        np.zeros(0),
+        n_iters,
+        relinearise_every,
+        min_sigma,
+        prior,
+        override_after,
+        override_sigma_sq,
+        c_ref,
+        t_max,
+    )
     return T, w
 
 

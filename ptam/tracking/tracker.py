@@ -213,7 +213,18 @@ class Tracker:
         t_max = self.tcfg.fine_radius_px / self.camera.fx * depth
         c_ref = snapshot.camera_centres[nearest]
         choice = select_pose_model(
-            self.camera, self.tcfg, self.cfg.model_selection, T, X, Xw, xy, level, not self._rapid, c_ref, t_max
+            self.camera,
+            self._cam,
+            self.tcfg,
+            self.cfg.model_selection,
+            T,
+            X,
+            Xw,
+            xy,
+            level,
+            not self._rapid,
+            c_ref,
+            t_max,
         )
         self._model = choice.model
         return choice.T_cw, choice.weights

@@ -38,39 +38,26 @@ def pose_irls_ref(
     c_ref,
     t_max,
 ):
-    """Numpy reference of :func:`pose_irls` on a :class:`~ptam.camera.model.CameraModel`."""
-    T = np.array(T_cw, dtype=np.float64)
-    mu = np.zeros(6)
-    uv = J = valid = w = None
-    for it in range(n_iters):
-        if it % relinearise_every == 0 or it == n_iters - 1:
-            Xc = X @ T[:3, :3].T + Xw[:, None] * T[:3, 3]
-            valid = Xc[:, 2] > 1e-12
-            uv = np.zeros((len(X), 2))
-            J = np.zeros((len(X), 2, 6))
-            uv[valid] = camera.project(Xc[valid])
-            dXc = se3.point_jacobian(Xc[valid])
-            dXc[:, :, :3] *= Xw[valid, None, None]
-            J[valid] = camera.project_jacobian(Xc[valid]) @ dXc
-        else:
-            uv = uv + J @ mu
-        r = meas - uv
-        e2 = (r**2).sum(axis=1) * inv_sigma**2
-        if not valid.any():
-            break
-        c2 = tukey_sigma_sq_ref(e2[valid], min_sigma)
-        if override_sigma_sq > 0 and it > override_after:
-            c2 = min(c2, override_sigma_sq)
-        w = np.where(valid & (e2 <= c2), (1.0 - e2 / c2) ** 2, 0.0)
-        H, g = normal_equations_ref(J, r, inv_sigma, w)
-        mu = np.linalg.solve(H + prior * np.eye(6), g)
-        T = se3.exp(mu) @ T
-        if t_max >= 0:
-            c = -T[:3, :3].T @ T[:3, 3]
-            d = np.linalg.norm(c - c_ref)
-            if d > t_max:
-                T[:3, 3] = -T[:3, :3] @ (c_ref + (c - c_ref) * t_max / d)
-    return T, (np.zeros(len(X)) if w is None else w)
+    """Numpy reference of :func:`pose_irls` on a :class:`~ptam.camera.model.CameraModel`: the edgelet reference
+    without edgelets."""
+    args = (min_sigma, prior, override_after, override_sigma_sq, c_ref, t_max)
+    none = np.zeros((0, 3))
+    T, w, _ = pose_irls_edgelets_ref(
+        camera,
+        T_cw,
+        X,
+        Xw,
+        meas,
+        inv_sigma,
+        none,
+        none[:, :2],
+        none[:, :2],
+        np.zeros(0),
+        n_iters,
+        relinearise_every,
+        *args,
+    )
+    return T, w
 
 
 def pose_irls_edgelets_ref(
