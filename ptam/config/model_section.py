@@ -16,3 +16,4 @@ class ModelSelectionConfig:
     min_sigma: Annotated[float, Range("(0, inf)")]
     inlier_ratio_bounds: Annotated[list[float], Range("(0, 1)", length=2)]
     panorama_kf_travel: Annotated[float, Range("(0, 1]")]
+    turn_keyframes_unspaced: bool

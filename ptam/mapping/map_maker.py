@@ -66,6 +66,11 @@ class MapMaker:
         self.map = map_ if map_ is not None else Map()
         self.queue: deque[KeyframeRequest] = deque()
         self.snapshot: MapSnapshot | None = None
+        # Keyframes handed over (written by the tracker's thread only) and integrated into the published
+        # snapshot (written by the mapper's thread only): no lock needed to tell whether one is still pending.
+        self._handed_over = 0
+        self._integrated = 0
+        self._published_integrated = 0
         self._plane_corners: dict[tuple[int, int], np.ndarray] = {}
         self._never_retry: dict[int, np.ndarray] = {}  # keyframe -> bool per point: do not search again
         self._failure_queue: list[tuple[int, int]] = []
@@ -106,10 +111,17 @@ class MapMaker:
         return nearest_distance / depth_mean > self.cfg.mapper.kf_dist_wiggle_mult * self.wiggle_depth_normalised
 
     def add_keyframe(self, request: KeyframeRequest) -> None:
+        self._handed_over += 1
         self.queue.append(request)
 
+    def keyframes_settled(self) -> bool:
+        """Every keyframe handed over is in the published snapshot and locally adjusted (PTAM §6.3)."""
+        return self._handed_over == self._published_integrated and self.recent_converged
+
     def publish(self) -> None:
+        integrated = self._integrated
         self.snapshot = self.map.snapshot()
+        self._published_integrated = integrated
 
     def _abort(self) -> bool:
         return len(self.queue) > 0
@@ -191,6 +203,7 @@ class MapMaker:
             job = integrate_keyframe(self.map, self.camera, self.cfg, k, self.closest_keyframe(k))
             self.stats.setdefault("edgelet_jobs", []).append(job)
         self.recent_converged = self.full_converged = False
+        self._integrated += 1
         self.stats["keyframes_added"] += 1
         self.stats["panorama_keyframes_added"] += int(r.panorama)
 

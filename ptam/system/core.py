@@ -272,7 +272,7 @@ class System(Initialisation):
             or res.in_doubt
             or not (
                 res.quality == Quality.GOOD
-                and kf.frames_since_keyframe > m.kf_min_frames
+                and self._spaced(kf.frames_since_keyframe, turned)
                 and self.mapper.queue_size() < m.kf_max_queue
                 and due
             )
@@ -302,6 +302,17 @@ class System(Initialisation):
             if self.mode == RunMode.ASYNC and self.cfg.system.async_waits_for_local_ba:
                 self._wait_for_mapper()
         return True
+
+    def _spaced(self, frames_since_keyframe: int, turned: bool) -> bool:
+        """Enough time since the last keyframe: PTAM §6.2's twenty frames; or, for a view turning away from every
+        keyframe (Gauglitz et al. §4.3 condition 3, whose condition 2 gives no time), the image travel itself once
+        the mapper has integrated the previous keyframe (the travel is measured against the snapshot's keyframes)
+        and adjusted it locally (the next one is placed against a refined map, at the pace the mapper keeps). A
+        turn at hand-held speed leaves the map within twenty frames (desk_corner: 15)."""
+        if frames_since_keyframe > self.cfg.mapper.kf_min_frames:
+            return True
+        ms = self.cfg.model_selection
+        return turned and ms.turn_keyframes_unspaced and self.mapper.keyframes_settled()
 
     def _about_parent(self, T_cw: np.ndarray) -> np.ndarray:
         """A panorama keyframe's pose. Its rotation was estimated about the nearest keyframe's centre: when that
