@@ -23,7 +23,8 @@ from ..map.keyframe import KeyFrame
 from ..map.map import SRC_EPIPOLAR, SRC_REFIND, SRC_ROOT, SRC_TRACKER, Map
 from ..map.snapshot import MapSnapshot
 from ..patch.finder import PatchFinder
-from .bundle import Bundle
+from .bundle import Bundle, BundleResult
+from .edgelet_map_ba import edgelet_ba_input, handle_edgelet_outliers, keep_edgelets
 from .edgelet_mapping import integrate_keyframe
 from .epipolar import epipolar_matches, unit_plane_corners
 from .local_ba import local_sets
@@ -318,12 +319,10 @@ class MapMaker:
             sets = local_sets(
                 m.kf_T_cw, m.meas_kf, m.meas_pt, m.n_points_total, n - 1, self.cfg.bundle.local_neighbours, fixed
             )
-            fixed_poses = ~sets.adjust
-            adjust_points = sets.points
+            fixed_poses, adjust_points = ~sets.adjust, sets.points
         else:
-            fixed_poses = fixed
-            adjust_points = ~m.bad
-        adjust_points = adjust_points & ~m.ray
+            fixed_poses, adjust_points = fixed, ~m.bad
+        edgelets = edgelet_ba_input(m, self.cfg, sets.adjust if recent else None)  # Agility §4.4
         self.stats["ba_running"] = "local" if recent else "global"
         try:
             res = self.bundle.adjust(
@@ -334,8 +333,9 @@ class MapMaker:
                 m.meas_xy[use],
                 m.meas_level[use],
                 fixed_poses,
-                adjust_points,
+                adjust_points & ~m.ray,
                 abort=self._abort,
+                edgelets=edgelets,
             )
         finally:
             self.stats["ba_running"] = None
@@ -343,6 +343,11 @@ class MapMaker:
         self.stats["local_ba" if recent else "global_ba"].append(
             (n, 1e3 * res.phase_seconds.get("total", 0.0), bool(res.converged))
         )
+        self._keep_ba_result(res, recent, np.flatnonzero(use), edgelets)
+
+    def _keep_ba_result(self, res: BundleResult, recent: bool, used: np.ndarray, edgelets) -> None:
+        """Write an adjustment's result into the map and handle its outliers (PTAM code ``BundleAdjust``)."""
+        m = self.map
         if res.failed:
             # PTAM code (MapMaker::BundleAdjust): "Cholesky failure in bundle adjust. The map is probably
             # corrupt: Ditching the map." The system resets.
@@ -351,13 +356,15 @@ class MapMaker:
             self.reset_requested = True
             return
         if res.accepted > 0:
-            m.set_poses(np.arange(n), res.poses)
+            m.set_poses(np.arange(m.n_keyframes), res.poses)
             m.set_points(np.arange(m.n_points_total), res.points)
+            keep_edgelets(m, edgelets, res)
             self.full_converged = False
             if recent:
                 self.recent_converged = False
         if len(res.outliers):
-            self._handle_outliers(np.flatnonzero(use)[res.outliers])
+            self._handle_outliers(used[res.outliers])
+        handle_edgelet_outliers(m, self.cfg, res.edgelet_outliers)
         if res.converged:
             self.recent_converged = True
             if not recent:
