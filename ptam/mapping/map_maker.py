@@ -25,7 +25,7 @@ from ..map.snapshot import MapSnapshot
 from ..patch.finder import PatchFinder
 from .bundle import Bundle, BundleResult
 from .edgelet_map_ba import edgelet_ba_input, handle_edgelet_outliers, keep_edgelets
-from .edgelet_mapping import integrate_keyframe
+from .edgelet_mapping import integrate_keyframe, rebuild_visibility_tables
 from .epipolar import epipolar_matches, unit_plane_corners
 from .local_ba import local_sets
 from .normals import NormalEstimator
@@ -90,6 +90,8 @@ class MapMaker:
         if len(self.map.keyframes):
             self.ready = True
             self.wiggle_depth_normalised = cfg.init.baseline_m / self.map.keyframes[0].scene_depth_mean
+            if cfg.edgelets.enabled and not self.map.edgelets.tables:  # a map from a file (Agility §5.2)
+                rebuild_visibility_tables(self.map, cfg)
             self.publish()
 
     # -- interface for the tracker's thread -----------------------------------------------------------------
