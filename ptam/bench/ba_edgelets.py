@@ -32,7 +32,7 @@ LINE_ANCHOR_PX = 3.0  # the line's anchor point anywhere within this of the proj
 GROSS_PX = 25.0  # a gross outlier: the line moved this far along its normal (§4.2 searches 5 px)
 START_PERTURBATION = (0.03, 3.0)  # m, degrees
 MIN_PLANE_ANGLE_DEG = 5.0  # the default of edgelets.triangulate_min_plane_angle_deg (§4.3's aperture problem)
-CANDIDATES_PER_EDGELET = 3  # random edgelets drawn per one kept (the rest fail the aperture check)
+CANDIDATES_PER_EDGELET = 8  # random edgelets drawn per one kept (the rest fail the aperture check)
 
 
 @dataclass(frozen=True)
@@ -65,21 +65,23 @@ def _measure(prob: SyntheticBA, truth: Edgelets, rng, offset_px: float, angle_de
 
 
 def _triangulable(prob: SyntheticBA, truth: Edgelets, kf: np.ndarray, ed: np.ndarray, min_deg: float) -> np.ndarray:
-    """Edgelets the mapper could have made (§4.3): the plane through some measuring keyframe's centre and the
-    edgelet meets the first measuring keyframe's plane at ``min_deg`` or more (else the aperture problem)."""
+    """Edgelets the mapper could have made (§4.3): the planes through the edgelet and the centres of the first two
+    keyframes that see it (a source and its nearest target) meet at ``min_deg`` or more (else the aperture
+    problem). ``kf``, ``ed``: the measurements, in keyframe order."""
     R, t = prob.poses_true[:, :3, :3], prob.poses_true[:, :3, 3]
     C = -np.einsum("nji,nj->ni", R, t)
     n = np.cross(truth.centre[ed] - C[kf], truth.direction[ed])
     n /= np.linalg.norm(n, axis=1, keepdims=True)
+    idx = np.arange(len(kf))
     first = np.full(len(truth), len(kf))
-    np.minimum.at(first, ed, np.arange(len(kf)))
-    has = first < len(kf)
-    ref = np.zeros((len(truth), 3))
-    ref[has] = n[first[has]]
-    sin = np.linalg.norm(np.cross(n, ref[ed]), axis=1)
-    best = np.zeros(len(truth))
-    np.maximum.at(best, ed, sin)
-    return best >= np.sin(np.radians(min_deg))
+    np.minimum.at(first, ed, idx)
+    second = np.full(len(truth), len(kf))
+    later = idx != first[ed]
+    np.minimum.at(second, ed[later], idx[later])
+    ok = second < len(kf)
+    sin = np.zeros(len(truth))
+    sin[ok] = np.linalg.norm(np.cross(n[first[ok]], n[second[ok]]), axis=1)
+    return ok & (sin >= np.sin(np.radians(min_deg)))
 
 
 def synthetic_edgelets(

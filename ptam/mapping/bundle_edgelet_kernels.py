@@ -1,7 +1,8 @@
 """Bundle-adjustment kernels for edgelets: their 4-DOF blocks in PTAM's Schur-complement LM (Agility §4.4).
 
-An edgelet is eliminated exactly like a point (PTAM §6.3, Hartley & Zisserman A6.4), with 4×4 blocks instead of
-3×3: per measurement the two perpendicular distances ε_n (eq. 7) and their Jacobians ∂ε/∂μ_K (2×6, eq. 8) and
+``ba_edgelet_along`` places the two virtual sample points of eq. 6 ±5 px from the projected centre at the current
+state. An edgelet is eliminated exactly like a point (PTAM §6.3, Hartley & Zisserman A6.4), with 4×4 blocks
+instead of 3×3: per measurement the two perpendicular distances ε_n (eq. 7) and their Jacobians ∂ε/∂μ_K (2×6, eq. 8) and
 ∂ε/∂μ_E (2×4, eq. 9) come from ``ptam.edgelet.edgelet_ba_kernels.edgelet_ba_terms``; here they are weighted by
 the Tukey biweight and accumulated:
 
@@ -22,6 +23,34 @@ import math
 
 import numpy as np
 from numba import njit
+
+from ..camera.camproj_kernels import project_jac
+
+
+@njit(nogil=True, cache=True)
+def ba_edgelet_along(cam, poses, frames, mcam, medg, offset_px, along):
+    """Eq. 6: the E-frame z of each measurement's two sample points, ∓``offset_px``/|d|, |d| the image length of a
+    unit step along the edgelet (eq. 5) at its centre in that keyframe; ``along`` (M, 2) is written."""
+    J = np.empty((2, 3))
+    for k in range(mcam.shape[0]):
+        T = poses[mcam[k]]
+        E = frames[medg[k]]
+        X = T[0, 0] * E[0, 3] + T[0, 1] * E[1, 3] + T[0, 2] * E[2, 3] + T[0, 3]
+        Y = T[1, 0] * E[0, 3] + T[1, 1] * E[1, 3] + T[1, 2] * E[2, 3] + T[1, 3]
+        Z = T[2, 0] * E[0, 3] + T[2, 1] * E[1, 3] + T[2, 2] * E[2, 3] + T[2, 3]
+        dx = T[0, 0] * E[0, 2] + T[0, 1] * E[1, 2] + T[0, 2] * E[2, 2]
+        dy = T[1, 0] * E[0, 2] + T[1, 1] * E[1, 2] + T[1, 2] * E[2, 2]
+        dz = T[2, 0] * E[0, 2] + T[2, 1] * E[1, 2] + T[2, 2] * E[2, 2]
+        _, _, ok = project_jac(cam, X, Y, Z, J)
+        if not ok:  # the centre is behind the camera: the measurement is invalid (edgelet_ba_terms)
+            along[k, 0] = 0.0
+            along[k, 1] = 0.0
+            continue
+        du = J[0, 0] * dx + J[0, 1] * dy + J[0, 2] * dz
+        dv = J[1, 0] * dx + J[1, 1] * dy + J[1, 2] * dz
+        z = offset_px / max(math.sqrt(du * du + dv * dv), 1e-12)
+        along[k, 0] = -z
+        along[k, 1] = z
 
 
 @njit(nogil=True, cache=True)

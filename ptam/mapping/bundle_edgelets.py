@@ -1,10 +1,9 @@
 """The edgelets' part of one bundle adjustment (Agility §4.4): their parameters and per-iteration work arrays.
 
 Every keyframe measurement of an edgelet gives two perpendicular distances ε_n from virtual sample points ±5 px
-from its projected centre (eq. 6–7, placed once per adjustment with ``sample_along``) to the measured line; the
-edgelet's four degrees of freedom (eq. 9) are eliminated by the Schur complement like a point's three
-(``bundle_edgelet_kernels``). An ``EdgeletLM`` without edgelets adds nothing anywhere, so a points-only
-adjustment runs exactly as before.
+from its projected centre to the measured line (eq. 6–7); the edgelet's four degrees of freedom (eq. 9) are
+eliminated by the Schur complement like a point's three (``bundle_edgelet_kernels``). An ``EdgeletLM`` without
+edgelets adds nothing anywhere, so a points-only adjustment runs exactly as before.
 
 Robust weights. §4.4 chose distances in pixels because it "makes them compatible with the M-Estimator also used
 for point features", and §8 gives points and edgelets alike "an independent single-pixel variance": one Tukey
@@ -12,6 +11,15 @@ biweight serves both, with its cut-off from the median of all squared errors —
 |e|² (σ = 2^level) and the edgelets' ε₁² + ε₂², two pixel-unit residuals per measurement as a point has. An
 edgelet measurement beyond the cut-off (or with a sample point behind the camera) leaves the problem and is
 reported as an outlier, as a point measurement is (PTAM §6.4).
+
+Sample points. Eq. 6 places them at ∓5/|d| on the edgelet's axis, |d| its image length per unit length. They are
+placed again at every linearisation, from the current state, and kept for that iteration's trial steps (whose
+costs are then comparable). Placed once at the start instead, they stay fixed in metres while the edgelet turns:
+an edgelet turning towards its viewing rays brings both closer to its projected centre, which fits any line
+through the centre better, and a poorly determined edgelet (nearly parallel to the baseline) slid that way by
+tens of degrees over many iterations (measured on the bench's exploring map). The Jacobians treat them as fixed;
+the term this leaves out is proportional to the angle between the projected edgelet and the measured line, which
+vanishes at the solution.
 """
 
 from __future__ import annotations
@@ -19,10 +27,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..camera.model import CameraModel
-from ..edgelet import EDGELET_DOF, Edgelets, perp, sample_along
+from ..edgelet import EDGELET_DOF, Edgelets, perp
 from ..edgelet.edgelet_ba_kernels import edgelet_ba_terms
 from ..geometry import se3
-from .bundle_edgelet_kernels import ba_edgelet_backsub, ba_edgelet_linearise, ba_edgelet_schur
+from .bundle_edgelet_kernels import ba_edgelet_along, ba_edgelet_backsub, ba_edgelet_linearise, ba_edgelet_schur
 from .bundle_inputs import EdgeletBundleInput
 from .bundle_kernels import ba_robust_cost
 from .bundle_structure import BundleStructure, EdgeletStructure
@@ -54,9 +62,8 @@ class EdgeletLM:
         self.a = inp.obs.a[es.sel]
         b = inp.obs.b[es.sel]
         self.m_hat = np.ascontiguousarray(perp(b / np.linalg.norm(b, axis=1, keepdims=True)))
-        compact = Edgelets.from_frames(self.F)
-        obs = type(inp.obs)(es.mcam, es.medg, self.a, b)
-        self.along = np.ascontiguousarray(sample_along(camera, P, compact, obs, inp.cfg))
+        self.offset_px = inp.cfg.ba_sample_offset_px
+        self.along = np.zeros((self.n, 2))
         ne = len(es.ids)
         self.V = np.zeros((ne, 4, 4))
         self.eb = np.zeros((ne, 4))
@@ -73,7 +80,11 @@ class EdgeletLM:
         self.bad = ~valid
 
     def residuals(self, P: np.ndarray) -> None:
+        """The sample points placed at the current state (eq. 6), then the residuals there; a trial keeps the
+        sample points of its linearisation, so that its cost is comparable."""
         if self.n:
+            es = self.es
+            ba_edgelet_along(self.cam, P, self.F, es.mcam, es.medg, self.offset_px, self.along)
             self._evaluate(P, self.F)
 
     def linearise(self, c2: float, cam_row_blocks: tuple[np.ndarray, np.ndarray]) -> float:
