@@ -6,7 +6,6 @@ import pytest
 
 from ptam.config import default_config
 from ptam.edgelet import perp, sample_along
-from ptam.edgelet.edgelet_ba_kernels import edgelet_ba_terms
 from ptam.geometry import so3
 from ptam.map.snapshot import camera_centres
 from ptam.mapping import bundle_edgelet_kernels as EK
@@ -16,6 +15,7 @@ from ptam.mapping.bundle_inputs import EdgeletBundleInput
 from ptam.mapping.bundle_structure import build_structure
 from tests.reference import bundle as R
 from tests.reference import bundle_edgelets as RE
+from tests.reference.edgelet_ba import edgelet_ba_terms_ref
 from tests.support.ba_problems import edgelet_errors, synthetic_edgelets, synthetic_workspace_problem
 
 CFG = default_config()
@@ -122,37 +122,48 @@ def test_without_edgelets_the_result_is_the_points_only_one(problem):
 
 
 def _linearised(problem):
-    """Point and edgelet blocks of one linearisation at the perturbed start, 3 of 10 keyframes fixed."""
+    """The inputs of the edgelet kernels at the perturbed start, 3 of 10 keyframes fixed, 5 edgelets not adjusted,
+    10 % of the measurements not in use; and the numpy reference's residuals and Jacobians there."""
     prob, eb = problem
     fixed = np.zeros(len(prob.poses_true), bool)
     fixed[[0, 4, 7]] = True
     adjust_e = np.ones(len(eb.init), bool)
     adjust_e[:5] = False
-    st = build_structure(
-        prob.meas_kf, prob.meas_pt, fixed, np.ones(len(prob.points_true), bool), (eb.obs.kf, eb.obs.edgelet, adjust_e)
-    )
+    edgelet_meas = (eb.obs.kf, eb.obs.edgelet, adjust_e)
+    st = build_structure(prob.meas_kf, prob.meas_pt, fixed, np.ones(len(prob.points_true), bool), edgelet_meas)
     es = st.edgelets
-    P = prob.poses_init[st.cams]
-    cam = prob.camera
+    P, cam = prob.poses_init[st.cams], prob.camera
     ed = eb.init.subset(es.ids)
     obs = type(eb.obs)(es.mcam, es.medg, eb.obs.a[es.sel], eb.obs.b[es.sel])
     along = sample_along(cam, P, ed, obs, CFG.edgelets)
     m_hat = perp(obs.b)
-    err, Jp, Je, valid = edgelet_ba_terms(cam.kernel_params(), P, ed.frames(), es.mcam, es.medg, obs.a, m_hat, along)
-    e2, bad = np.sum(err**2, axis=1), ~valid
-    use = np.random.default_rng(1).random(len(e2)) < 0.9
-    c2 = float(np.median(e2)) * 9.0
-    return st, (err, Jp, Je, e2, bad, use, c2)
+    use = np.random.default_rng(1).random(len(es.sel)) < 0.9
+    err, e2, bad = np.empty((len(use), 2)), np.empty(len(use)), np.empty(len(use), bool)
+    meas = (es.mcam, es.medg, obs.a, m_hat, along)
+    EK.ba_edgelet_residuals(cam.kernel_params(), P, ed.frames(), *meas, use, err, e2, bad)
+    ref = edgelet_ba_terms_ref(cam, P, ed.frames(), es.mcam, es.medg, obs.a, m_hat, along)
+    c2 = float(np.median(e2[use])) * 9.0
+    return st, (cam.kernel_params(), P, ed.frames(), meas, use, e2, bad, c2), err, ref
+
+
+def test_residuals_kernel_matches_reference(problem):
+    st, (_, _, _, _, use, e2, bad, _), err, (r_err, _, _, r_valid) = _linearised(problem)
+    assert np.array_equal(bad, use & ~r_valid)
+    ok = use & r_valid
+    assert close(err[ok], r_err[ok]) and not err[~use].any() and close(e2, np.where(ok, np.sum(r_err**2, 1), 0.0))
 
 
 def test_kernels_match_reference(problem):
-    st, (err, Jp, Je, e2, bad, use, c2) = _linearised(problem)
+    st, args, _, (r_err, r_Jp, r_Je, _) = _linearised(problem)
+    cam, P, F, meas, use, e2, bad, c2 = args
     es, nf, ne = st.edgelets, st.n_free, len(st.edgelets.ids)
     U0 = np.random.default_rng(2).normal(size=(nf, 6, 6))
     U, ea = U0.copy(), np.ones((nf, 6))
-    V, eb, W, live = np.empty((ne, 4, 4)), np.empty((ne, 4)), np.full((len(err), 6, 4), 7.0), np.empty(len(err), bool)
-    EK.ba_edgelet_linearise(err, Jp, Je, e2, bad, use, c2, es.mrow, es.medg, U, ea, V, eb, W, live)
-    rU, rea, rV, reb, rW, rlive = RE.ba_edgelet_linearise_ref(err, Jp, Je, e2, bad, use, c2, es.mrow, es.medg, nf, ne)
+    V, eb, W, live = np.empty((ne, 4, 4)), np.empty((ne, 4)), np.full((len(use), 6, 4), 7.0), np.empty(len(use), bool)
+    EK.ba_edgelet_linearise(cam, P, F, meas, use, e2, bad, c2, es.mrow, U, ea, V, eb, W, live)
+    rU, rea, rV, reb, rW, rlive = RE.ba_edgelet_linearise_ref(
+        r_err, r_Jp, r_Je, e2, bad, use, c2, es.mrow, es.medg, nf, ne
+    )
     assert np.array_equal(live, rlive) and 0 < live.sum() < use.sum()
     assert close(U - U0, rU) and close(ea - 1.0, rea) and close(V, rV) and close(eb, reb) and close(W, rW)
 
@@ -182,49 +193,24 @@ def test_sample_points_kernel_matches_sample_along(problem):
 def test_one_walk_numbers_the_pairs_of_points_and_edgelets(problem):
     """The reduced system of points and edgelets together is the sum of the two references'."""
     prob, _ = problem
-    st, (err, Jp, Je, e2, bad, use, c2) = _linearised(problem)
+    st, args, _, _ = _linearised(problem)
+    cam_p, P, F, meas, use, e2, bad, c2 = args
     es, nf, ne, m = st.edgelets, st.n_free, len(st.edgelets.ids), len(st.pts)
-    cam = prob.camera
-    P, X = prob.poses_init[st.cams], prob.points_init[st.pts]
+    X = prob.points_init[st.pts]
     k = len(st.sel)
     inv_sigma = np.ldexp(1.0, -prob.meas_level[st.sel])
-    U, ea, V, eb, W, live = (
-        np.empty((nf, 6, 6)),
-        np.empty((nf, 6)),
-        np.empty((m, 3, 3)),
-        np.empty((m, 3)),
-        np.zeros((k, 6, 3)),
-        np.empty(k, bool),
-    )
-    K.ba_linearise(
-        cam.kernel_params(),
-        P,
-        X,
-        st.mcam,
-        st.mpt,
-        prob.meas_xy[st.sel],
-        inv_sigma,
-        np.ones(k, bool),
-        1e6,
-        st.cam_row,
-        U,
-        ea,
-        V,
-        eb,
-        W,
-        live,
-    )
-    Ve, ebe, We, livee = np.empty((ne, 4, 4)), np.empty((ne, 4)), np.zeros((len(err), 6, 4)), np.empty(len(err), bool)
-    EK.ba_edgelet_linearise(err, Jp, Je, e2, bad, use, c2, es.mrow, es.medg, U, ea, Ve, ebe, We, livee)
+    U, ea, V, eb = np.empty((nf, 6, 6)), np.empty((nf, 6)), np.empty((m, 3, 3)), np.empty((m, 3))
+    W, live = np.zeros((k, 6, 3)), np.empty(k, bool)
+    uv, every = prob.meas_xy[st.sel], np.ones(k, bool)
+    K.ba_linearise(cam_p, P, X, st.mcam, st.mpt, uv, inv_sigma, every, 1e6, st.cam_row, U, ea, V, eb, W, live)
+    Ve, ebe, We, livee = np.empty((ne, 4, 4)), np.empty((ne, 4)), np.zeros((len(use), 6, 4)), np.empty(len(use), bool)
+    EK.ba_edgelet_linearise(cam_p, P, F, meas, use, e2, bad, c2, es.mrow, U, ea, Ve, ebe, We, livee)
     lam = 1e-2
-    blocks, rhs, Vinv, Veinv = (
-        np.empty((len(st.pair_rows), 6, 6)),
-        np.empty(6 * nf),
-        np.empty_like(V),
-        np.empty_like(Ve),
+    blocks, rhs = np.empty((len(st.pair_rows), 6, 6)), np.empty(6 * nf)
+    K.ba_schur(U, ea, V, eb, W, live, lam, st.mrow, st.pt_start, st.order, st.pair_id, blocks, rhs, np.empty_like(V))
+    EK.ba_edgelet_schur(
+        Ve, ebe, We, livee, lam, es.mrow, es.e_start, es.order, es.pair_id, blocks, rhs, np.empty_like(Ve)
     )
-    K.ba_schur(U, ea, V, eb, W, live, lam, st.mrow, st.pt_start, st.order, st.pair_id, blocks, rhs, Vinv)
-    EK.ba_edgelet_schur(Ve, ebe, We, livee, lam, es.mrow, es.e_start, es.order, es.pair_id, blocks, rhs, Veinv)
     pS, prhs, _ = R.ba_schur_ref(U, ea, V, eb, W, live, lam, st.mrow, st.mpt)
     eS, erhs, _ = RE.ba_edgelet_schur_ref(Ve, ebe, We, livee, lam, es.mrow, es.medg, nf)
     assert close(assemble(blocks, st.pair_rows, st.pair_cols, nf), pS + eS) and close(rhs, prhs + erhs)

@@ -28,9 +28,14 @@ import numpy as np
 
 from ..camera.model import CameraModel
 from ..edgelet import EDGELET_DOF, Edgelets, perp
-from ..edgelet.edgelet_ba_kernels import edgelet_ba_terms
 from ..geometry import se3
-from .bundle_edgelet_kernels import ba_edgelet_along, ba_edgelet_backsub, ba_edgelet_linearise, ba_edgelet_schur
+from .bundle_edgelet_kernels import (
+    ba_edgelet_along,
+    ba_edgelet_backsub,
+    ba_edgelet_linearise,
+    ba_edgelet_residuals,
+    ba_edgelet_schur,
+)
 from .bundle_inputs import EdgeletBundleInput
 from .bundle_kernels import ba_robust_cost
 from .bundle_structure import BundleStructure, EdgeletStructure
@@ -69,15 +74,14 @@ class EdgeletLM:
         self.eb = np.zeros((ne, 4))
         self.W = np.zeros((self.n, 6, 4))
         self.Vinv = np.zeros((ne, 4, 4))
-        self._terms = (np.zeros((self.n, 2)), np.zeros((self.n, 2, 6)), np.zeros((self.n, 2, 4)))
+        self.err = np.zeros((self.n, 2))
 
-    def _evaluate(self, P: np.ndarray, F: np.ndarray) -> None:
-        """Residuals (and Jacobians) at poses P and frames F: e2 and bad (a sample point behind the camera)."""
+    def _residuals(self, P: np.ndarray, F: np.ndarray, use: np.ndarray) -> None:
+        """e2 and bad (a sample point behind the camera) of the measurements in ``use`` at poses P, frames F."""
         es = self.es
-        err, Jp, Je, valid = edgelet_ba_terms(self.cam, P, F, es.mcam, es.medg, self.a, self.m_hat, self.along)
-        self._terms = (err, Jp, Je)
-        self.e2 = np.einsum("ks,ks->k", err, err)
-        self.bad = ~valid
+        ba_edgelet_residuals(
+            self.cam, P, F, es.mcam, es.medg, self.a, self.m_hat, self.along, use, self.err, self.e2, self.bad
+        )
 
     def residuals(self, P: np.ndarray) -> None:
         """The sample points placed at the current state (eq. 6), then the residuals there; a trial keeps the
@@ -85,17 +89,31 @@ class EdgeletLM:
         if self.n:
             es = self.es
             ba_edgelet_along(self.cam, P, self.F, es.mcam, es.medg, self.offset_px, self.along)
-            self._evaluate(P, self.F)
+            self._residuals(P, self.F, self.use)
 
-    def linearise(self, c2: float, cam_row_blocks: tuple[np.ndarray, np.ndarray]) -> float:
+    def linearise(self, P: np.ndarray, c2: float, cam_row_blocks: tuple[np.ndarray, np.ndarray]) -> float:
         """Add the edgelets' Tukey-weighted terms to the camera blocks (U, ε_a); their robust cost."""
         if not self.n:
             return 0.0
         U, ea = cam_row_blocks
-        err, Jp, Je = self._terms
         es = self.es
+        meas = (es.mcam, es.medg, self.a, self.m_hat, self.along)
         ba_edgelet_linearise(
-            err, Jp, Je, self.e2, self.bad, self.use, c2, es.mrow, es.medg, U, ea, self.V, self.eb, self.W, self.live
+            self.cam,
+            P,
+            self.F,
+            meas,
+            self.use,
+            self.e2,
+            self.bad,
+            c2,
+            es.mrow,
+            U,
+            ea,
+            self.V,
+            self.eb,
+            self.W,
+            self.live,
         )
         return float(ba_robust_cost(self.e2, self.bad, self.use, c2))
 
@@ -129,7 +147,7 @@ class EdgeletLM:
         if not self.n:
             return None, 0.0
         F_new = _frames_updated(self.F, de)
-        self._evaluate(P_new, F_new)
+        self._residuals(P_new, F_new, self.live)
         return F_new, float(ba_robust_cost(self.e2, self.bad, self.live, c2))
 
     def accept(self, F_new: np.ndarray | None) -> None:
