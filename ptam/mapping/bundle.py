@@ -16,6 +16,9 @@ factorised. Details from PTAM's code:
 * The abort flag is polled before every trial, so a request stops the solver within one iteration; the
   state returned is always the last accepted one, i.e. the best so far.
 
+Edgelets (Agility §4.4), when given, are adjusted with the poses and points: 4-DOF blocks eliminated by the same
+Schur complement, weighted by the same Tukey biweight (``bundle_edgelets``).
+
 One deliberate difference: a trial's cost is compared on the measurements that were inliers when the step
 was computed (the flagged ones score 1 on both sides); PTAM re-scores the flagged ones in the trial, which
 can accept a step only because an outlier moved.
@@ -124,7 +127,7 @@ class Bundle:
         phases = {"setup": 0.0, "linearise": 0.0, "schur": 0.0, "solve": 0.0, "backsub": 0.0, "trial": 0.0}
         solver = ReducedSolver(st, dense=st.n_free <= self.cfg.dense_max_cameras)
         phases["setup"] = time.perf_counter() - t_start
-        edg_lm = EdgeletLM(self.camera, st, edg, inp.poses[st.cams])
+        edg_lm = EdgeletLM(self.camera, st, edg)
         state = _LMState(st, inp.poses[st.cams], inp.points[st.pts], inp.meas_xy[st.sel], inv_sigma, edg_lm)
         status = self._levenberg_marquardt(state, solver, should_abort, phases)
         return self._result(inp, state, status, phases, t_start, edg)

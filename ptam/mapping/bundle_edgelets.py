@@ -51,7 +51,7 @@ def _frames_updated(F: np.ndarray, de: np.ndarray) -> np.ndarray:
 class EdgeletLM:
     """The adjusted edgelets (frames E_WE), their measurements and the blocks of the current linearisation."""
 
-    def __init__(self, camera: CameraModel, st: BundleStructure, inp: EdgeletBundleInput | None, P: np.ndarray):
+    def __init__(self, camera: CameraModel, st: BundleStructure, inp: EdgeletBundleInput | None):
         es = st.edgelets if st.edgelets is not None and inp is not None else EdgeletStructure.empty()
         self.es = es
         self.n = len(es.sel)
