@@ -2,6 +2,7 @@
 
 import re
 
+from ptam.bench import ba_edgelets as bench_edgelets
 from ptam.bench import ba_timing as bench_ba
 from ptam.config import default_config
 
@@ -9,6 +10,7 @@ from ptam.config import default_config
 def test_bench_reports_buckets_and_summary_line(monkeypatch):
     monkeypatch.setattr(bench_ba, "BENCH_KEYFRAMES", (10, 50, 100))
     monkeypatch.setattr(bench_ba, "LOCAL_REPEATS", 1)
+    monkeypatch.setattr(bench_edgelets, "EDGELET_BENCH_KEYFRAMES", (10,))
     lines = []
     result = bench_ba.run_ba_benchmark(default_config(), out=lines.append)
     summary = [ln for ln in lines if ln.startswith("local_ba_ms_2_49=")]
@@ -19,3 +21,9 @@ def test_bench_reports_buckets_and_summary_line(monkeypatch):
     # Every map size converged; the 100-keyframe map has 40 points per keyframe pair.
     assert [r["keyframes"] for r in result["rows"]] == [10, 50, 100]
     assert all(r["global_converged"] for r in result["rows"]) and result["rows"][2]["points"] == 40 * 99
+    # Agility §9.2's comparison: the same 10-keyframe map without and with one edgelet per 5 points.
+    (e,) = result["edgelet_rows"]
+    assert e["keyframes"] == 10 and e["edgelets"] == e["points"] // 5 and e["edgelet_measurements"] > 2 * e["edgelets"]
+    kinds = ("global", "global_edgelets", "local", "local_edgelets")
+    assert all(e[f"{k}_cpu_ms"] > 0 and e[f"{k}_iterations"] > 0 for k in kinds)
+    assert any(ln.startswith("edgelets (Agility §9.2") for ln in lines)

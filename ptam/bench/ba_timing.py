@@ -246,8 +246,12 @@ def run_ba_benchmark(cfg, out=print) -> dict:
         "global_ba_ms_50_99": means["global"][1],
         "global_ba_ms_100_149": means["global"][2],
     }
+    from .ba_edgelets import run_edgelet_rows  # the edgelet rows build on this module's maps
+
+    edgelet_rows = run_edgelet_rows(cfg, bundle, out)
     out(" ".join(f"{k}={v:.1f}" for k, v in result.items()))
-    return {**result, "local_ba_ms_50_99": means["local"][1], "local_ba_ms_100_149": means["local"][2], "rows": rows}
+    out_rows = {"rows": rows, "edgelet_rows": edgelet_rows}
+    return {**result, "local_ba_ms_50_99": means["local"][1], "local_ba_ms_100_149": means["local"][2], **out_rows}
 
 
 def _bench_row(bundle: Bundle, n_kf: int, out) -> dict:

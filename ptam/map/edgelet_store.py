@@ -69,6 +69,21 @@ class EdgeletStore:
     def add_measurements(self, kf, edgelet, a, b) -> np.ndarray:
         return self._m.append(kf=kf, edgelet=edgelet, a=a, b=b)
 
+    def remove_measurements(self, mask: np.ndarray) -> None:
+        """Drop the measurements where ``mask`` and their keyframes' visibility-table rows."""
+        m = self._m
+        gone_kf, gone_e = m.data["kf"][: m.n][mask], m.data["edgelet"][: m.n][mask]
+        m.keep(~mask)
+        for k in np.unique(gone_kf).tolist():  # one pass per keyframe that lost a measurement
+            t = self.tables.get(k)
+            if t is not None:
+                self._set_table(k, tuple(a[~np.isin(t[0], gone_e[gone_kf == k])] for a in t))
+
+    def _set_table(self, kf: int, rows: tuple[np.ndarray, ...]) -> None:
+        for a in rows:
+            a.setflags(write=False)
+        self.tables[kf] = rows
+
     def mark_bad(self, idx: np.ndarray) -> None:
         """Flag edgelets bad and drop their measurements and visibility-table rows."""
         self._e.data["bad"][idx] = True
@@ -84,10 +99,7 @@ class EdgeletStore:
         new: tuple[np.ndarray, ...] = (np.asarray(ids, np.int64), np.asarray(visible, bool), np.asarray(r_search))
         new += (np.asarray(t_min), np.asarray(max_blur))
         old = self.tables.get(kf)
-        rows = new if old is None else tuple(np.concatenate([o, x]) for o, x in zip(old, new))
-        for a in rows:
-            a.setflags(write=False)
-        self.tables[kf] = rows
+        self._set_table(kf, new if old is None else tuple(np.concatenate([o, x]) for o, x in zip(old, new)))
 
     def transform(self, R: np.ndarray, t: np.ndarray, scale: float) -> None:
         """X_new = R·(scale·X_old) + t for centres; directions and normals rotate."""

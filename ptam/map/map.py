@@ -306,6 +306,14 @@ class Map:
         self.edgelets.append_table(int(kf), ids, visible, r_search, t_min, max_blur)
         self._changed()
 
+    def remove_edgelet_measurements(self, mask) -> None:
+        """Drop the edgelet measurements where ``mask`` (one bool per current one) and their table rows (§5.2)."""
+        mask = np.asarray(mask, dtype=bool)
+        if mask.shape != (self.edgelets.n_measurements,):
+            raise PtamError(f"map: edgelet measurement mask must have shape ({self.edgelets.n_measurements},)")
+        self.edgelets.remove_measurements(mask)
+        self._changed()
+
     def mark_edgelets_bad(self, indices) -> None:
         self.edgelets.mark_bad(self._check_indices("edgelet", indices, self.edgelets.n_total))
         self._changed()

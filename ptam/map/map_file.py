@@ -2,10 +2,15 @@
 
 A map file is a NumPy ``.npz`` archive (compressed, no pickles) named by a format string and a version. It holds
 what cannot be recomputed: each keyframe's level-0 image, pose, depth statistics and timestamp, every point column
-(bad points included, so indices stay valid), every measurement column, the camera and the pyramid depth the map
-was built with. Everything derived (the other pyramid levels, FAST corners, row tables, and whatever else a
-:class:`KeyFrame` builds from its image) is rebuilt on load from the current config. Files are written to a
-temporary file in the target directory and renamed into place, so a crash never leaves half a map behind.
+(bad points included, so indices stay valid), every measurement column, every edgelet and edgelet-measurement
+column (version 3), the camera and the pyramid depth the map was built with. Everything derived (the other pyramid
+levels, FAST corners, row tables, and whatever else a :class:`KeyFrame` builds from its image) is rebuilt on load
+from the current config; so are the edgelets' visibility tables (Agility §5.2), by the mapper that takes the map.
+Files are written to a temporary file in the target directory and renamed into place, so a crash never leaves half
+a map behind.
+
+Versions: 1 (points), 2 (+ panorama keyframes and rays, Gauglitz et al. §3.2), 3 (+ edgelets, Agility §4). Every
+older version is still read; what it cannot hold loads as absent (no panoramas, no rays, no edgelets).
 """
 
 from __future__ import annotations
@@ -28,12 +33,19 @@ from .map_file_checks import FIELDS, Member, check_layout, check_values, read_me
 from .snapshot import MapSnapshot
 
 FORMAT = "ptam-map"
-VERSION = 2
-# Version 2 added panorama keyframes and their rays (Gauglitz et al. §3.2); a version-1 map has neither.
-_ADDED_IN_2 = {"ray": "X", "kf_panorama": "kf_image0"}  # field -> the field whose length it has
+VERSION = 3
+# Version 2 added panorama keyframes and their rays (Gauglitz et al. §3.2); version 3 the edgelets and their
+# keyframe measurements (Agility §4). An older map has none of what came later: field -> the field whose length it
+# has (an empty field when that is itself new). Versions 1 and 2 are still read.
+_ADDED = {
+    2: {"ray": "X", "kf_panorama": "kf_image0"},
+    3: {k: "" for k in FIELDS if k.startswith("edgelet_")},
+}
 
 _POINTS = ("X", "normal", "source_kf", "source_level", "source_xy", "bad", "ray")
 _MEASUREMENTS = ("meas_kf", "meas_pt", "meas_xy", "meas_level", "meas_source")
+_EDGELETS = tuple(_ADDED[3])
+_EMPTY_DTYPES = {"f": np.float64, "iu": np.int64, "b": np.bool_}
 
 
 @dataclass(frozen=True)
@@ -60,7 +72,7 @@ def save_map(path: str | os.PathLike, snapshot: MapSnapshot, camera, levels: int
         "kf_depth_sigma": np.array([kf.scene_depth_sigma for kf in snapshot.keyframes]),
         "kf_timestamp": np.array([kf.timestamp for kf in snapshot.keyframes]),
         "kf_panorama": np.array([kf.panorama for kf in snapshot.keyframes], dtype=bool),
-        **{k: np.asarray(getattr(snapshot, k)) for k in _POINTS + _MEASUREMENTS},
+        **{k: np.asarray(getattr(snapshot, k)) for k in _POINTS + _MEASUREMENTS + _EDGELETS},
     }
     directory = os.path.dirname(os.path.abspath(path))
     try:
@@ -102,17 +114,29 @@ def _read(path: str, image_cfg) -> tuple[dict[str, np.ndarray], object]:
                     f"image.levels = {image_cfg.levels}"
                 )
             stored = set(members)
-            if version == 1:
-                members = {
-                    **members,
-                    **{k: Member(members[n].shape[:1], np.dtype(bool)) for k, n in _ADDED_IN_2.items()},
-                }
+            members = {**members, **_added_since(version, members)}
             check_layout(path, members, camera.width, camera.height)
-            arrays = {k: z[k] if k in stored else np.zeros(members[k].shape, bool) for k in FIELDS}
+            arrays = {k: z[k] if k in stored else np.zeros(members[k].shape, members[k].dtype) for k in FIELDS}
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as e:
         raise InputError(f"cannot read map file {path}: corrupt or not a ptam map ({e})") from None
     check_values(path, arrays, camera.width, camera.height, levels)
     return arrays, camera
+
+
+def _new_since(version: int) -> list[str]:
+    """The fields a file of format ``version`` cannot have."""
+    return [k for v, fields in _ADDED.items() if version < v for k in fields]
+
+
+def _added_since(version: int, members: dict[str, Member]) -> dict[str, Member]:
+    """Stand-ins for the fields a ``version`` file cannot have: false flags for panoramas and rays, no edgelets."""
+    out = {}
+    for k in _new_since(version):
+        like = next(f[k] for f in _ADDED.values() if k in f)
+        kinds, template = FIELDS[k]
+        shape = members[like].shape[:1] if like else (0, *template[1:])
+        out[k] = Member(shape, np.dtype(_EMPTY_DTYPES[kinds]))
+    return out
 
 
 def _check_format(path: str, z, members: dict) -> int:
@@ -122,9 +146,9 @@ def _check_format(path: str, z, members: dict) -> int:
         raise InputError(f"{path} is not a ptam map file")
     v = members.get("version")
     version = int(z["version"]) if v is not None and v.dtype.kind in "iu" and v.shape == () else -1
-    if version not in (1, VERSION):
-        raise InputError(f"map file {path} has format version {version}; this ptam reads version {VERSION} (and 1)")
-    missing = [k for k in FIELDS if k not in members and not (version == 1 and k in _ADDED_IN_2)]
+    if version not in range(1, VERSION + 1):
+        raise InputError(f"map file {path} has format version {version}; this ptam reads version {VERSION} (and 1, 2)")
+    missing = [k for k in FIELDS if k not in members and k not in _new_since(version)]
     if missing:
         raise InputError(f"map file {path} is incomplete: no '{missing[0]}'")
     return version
@@ -157,6 +181,20 @@ def load_map(path: str | os.PathLike, image_cfg) -> LoadedMap:
         if a["bad"].any():
             m.mark_bad(np.flatnonzero(a["bad"]))
         m.add_measurements(a["meas_kf"], a["meas_pt"], a["meas_xy"], a["meas_level"], a["meas_source"])
+        _load_edgelets(m, a)
     except PtamError as e:
         raise InputError(f"map file {path} is inconsistent: {e}") from None
     return LoadedMap(m, camera)
+
+
+def _load_edgelets(m: Map, a: dict[str, np.ndarray]) -> None:
+    """Agility §4: the edgelets and their measurements; visibility tables (§5.2) are derived and rebuilt by the
+    mapper from the keyframe images and these measurements."""
+    if len(a["edgelet_centre"]):
+        m.add_edgelets(a["edgelet_centre"], a["edgelet_direction"], a["edgelet_normal"], a["edgelet_source_kf"])
+        if a["edgelet_bad"].any():
+            m.mark_edgelets_bad(np.flatnonzero(a["edgelet_bad"]))
+    if len(a["edgelet_meas_kf"]):
+        m.add_edgelet_measurements(
+            a["edgelet_meas_kf"], a["edgelet_meas_edgelet"], a["edgelet_meas_a"], a["edgelet_meas_b"]
+        )

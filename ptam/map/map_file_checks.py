@@ -3,9 +3,10 @@
 First the archive's members, from their ``.npy`` headers only: each array's dtype and shape, and its byte size
 against the bytes the member really holds, so a header claiming a huge shape never allocates anything. Then the
 shapes against each other and against the file's camera, and, once loaded, the values: finite numbers, rigid
-keyframe poses, positive scene depths, unit normals, every keyframe / point index and pyramid level in range,
-pixel positions inside the image, one measurement per (keyframe, point). Each problem is one
-:class:`InputError` line naming the file and the field. Checks are vectorised: a map holds ~10^5 points.
+keyframe poses, positive scene depths, unit normals, unit and perpendicular edgelet axes, every keyframe / point /
+edgelet index and pyramid level in range, pixel positions inside the image, one measurement per (keyframe, point)
+and per (keyframe, edgelet). Each problem is one :class:`InputError` line naming the file and the field. Checks are
+vectorised: a map holds ~10^5 points.
 """
 
 from __future__ import annotations
@@ -22,7 +23,8 @@ from ..errors import InputError
 from .map import SRC_REFIND, SRC_ROOT
 
 # Member (without ``.npy``) -> (dtype: "f" float, "iu" integer, "b" bool, "U" text, "B" uint8; shape), where a
-# letter stands for a size: n keyframes, m points, k measurements, H x W the camera's image.
+# letter stands for a size: n keyframes, m points, k measurements, e edgelets, j edgelet measurements, H x W the
+# camera's image.
 FIELDS: dict[str, tuple[str, tuple]] = {
     "format": ("U", ()),
     "version": ("iu", ()),
@@ -46,6 +48,17 @@ FIELDS: dict[str, tuple[str, tuple]] = {
     "meas_xy": ("f", ("k", 2)),
     "meas_level": ("iu", ("k",)),
     "meas_source": ("iu", ("k",)),
+    # Agility §4: edgelets (centre, unit direction, unit dark-to-light normal, source keyframe, bad) and their
+    # keyframe measurements, image lines a + λb (version 3).
+    "edgelet_centre": ("f", ("e", 3)),
+    "edgelet_direction": ("f", ("e", 3)),
+    "edgelet_normal": ("f", ("e", 3)),
+    "edgelet_source_kf": ("iu", ("e",)),
+    "edgelet_bad": ("b", ("e",)),
+    "edgelet_meas_kf": ("iu", ("j",)),
+    "edgelet_meas_edgelet": ("iu", ("j",)),
+    "edgelet_meas_a": ("f", ("j", 2)),
+    "edgelet_meas_b": ("f", ("j", 2)),
 }
 _KINDS = {"f": "a float array", "iu": "an integer array", "b": "a bool array", "U": "text", "B": "uint8 images"}
 
@@ -145,6 +158,8 @@ def check_layout(path: str, members: dict[str, Member], width: int, height: int)
         "n": members["kf_image0"].shape[0],
         "m": members["X"].shape[0],
         "k": members["meas_kf"].shape[0],
+        "e": members["edgelet_centre"].shape[0],
+        "j": members["edgelet_meas_kf"].shape[0],
         "H": height,
         "W": width,
     }
@@ -153,7 +168,8 @@ def check_layout(path: str, members: dict[str, Member], width: int, height: int)
         if members[name].shape != expected:
             raise InputError(
                 f"map file {path}: '{name}' has shape {members[name].shape}, expected {expected} "
-                f"({sizes['n']} keyframes, {sizes['m']} points, {sizes['k']} measurements, {width}x{height} images)"
+                f"({sizes['n']} keyframes, {sizes['m']} points, {sizes['k']} measurements, {sizes['e']} edgelets, "
+                f"{sizes['j']} edgelet measurements, {width}x{height} images)"
             )
     if sizes["n"] == 0:
         raise InputError(f"map file {path}: no keyframes")
@@ -192,11 +208,32 @@ def check_values(path: str, a: dict[str, np.ndarray], width: int, height: int, l
         raise InputError(
             f"map file {path}: 'meas_source' must be {SRC_ROOT}..{SRC_REFIND}, got {src.min()}..{src.max()}"
         )
-    for name in ("source_xy", "meas_xy"):
+    for name in ("source_xy", "meas_xy", "edgelet_meas_a"):
         xy = a[name]
         lo, hi = -_PIXEL_HALF, np.array([width, height]) - _PIXEL_HALF
         _rows_where(path, name, np.any((xy < lo) | (xy > hi), axis=1), xy, f"lies outside the {width}x{height} image")
     _unique_measurements(path, a["meas_kf"], a["meas_pt"], m)
+    _check_edgelets(path, a, n)
+
+
+def _check_edgelets(path: str, a: dict[str, np.ndarray], n: int) -> None:
+    """Unit, perpendicular edgelet directions and normals (E-frame z and x, Agility §4.1), unit measured line
+    directions, indices in range, one measurement per (keyframe, edgelet)."""
+    for name in ("edgelet_direction", "edgelet_normal", "edgelet_meas_b"):
+        unit = np.abs(np.linalg.norm(a[name], axis=1) - 1.0) > _UNIT_TOL
+        _rows_where(path, name, unit, a[name], "must be a unit vector")
+    dot = np.abs(np.sum(a["edgelet_direction"] * a["edgelet_normal"], axis=1)) > _UNIT_TOL
+    _rows_where(path, "edgelet_normal", dot, a["edgelet_normal"], "must be perpendicular to 'edgelet_direction'")
+    e = len(a["edgelet_centre"])
+    for name, what, size in (
+        ("edgelet_source_kf", "keyframe", n),
+        ("edgelet_meas_kf", "keyframe", n),
+        ("edgelet_meas_edgelet", "edgelet", e),
+    ):
+        _index(path, name, what, a[name], size)
+    _unique_measurements(
+        path, a["edgelet_meas_kf"], a["edgelet_meas_edgelet"], e, ("edgelet_meas_kf", "edgelet_meas_edgelet", "edgelet")
+    )
 
 
 def _finite(path: str, name: str, x: np.ndarray) -> None:
@@ -230,13 +267,15 @@ def _index(path: str, name: str, what: str, idx: np.ndarray, size: int) -> None:
         )
 
 
-def _unique_measurements(path: str, kf: np.ndarray, pt: np.ndarray, n_points: int) -> None:
+def _unique_measurements(
+    path: str, kf: np.ndarray, pt: np.ndarray, n_points: int, names=("meas_kf", "meas_pt", "point")
+) -> None:
     key = kf.astype(np.int64) * max(n_points, 1) + pt.astype(np.int64)
     order = np.argsort(key, kind="stable")
     same = key[order][1:] == key[order][:-1]
     if same.any():
         j = order[int(np.argmax(same)) + 1]
         raise InputError(
-            f"map file {path}: 'meas_kf'/'meas_pt': keyframe {kf[j]} measures point {pt[j]} more than once "
-            f"(measurement {j})"
+            f"map file {path}: '{names[0]}'/'{names[1]}': keyframe {kf[j]} measures {names[2]} {pt[j]} more than "
+            f"once (measurement {j})"
         )

@@ -16,6 +16,9 @@ factorised. Details from PTAM's code:
 * The abort flag is polled before every trial, so a request stops the solver within one iteration; the
   state returned is always the last accepted one, i.e. the best so far.
 
+Edgelets (Agility §4.4), when given, are adjusted with the poses and points: 4-DOF blocks eliminated by the same
+Schur complement, weighted by the same Tukey biweight (``bundle_edgelets``).
+
 One deliberate difference: a trial's cost is compared on the measurements that were inliers when the step
 was computed (the flagged ones score 1 on both sides); PTAM re-scores the flagged ones in the trial, which
 can accept a step only because an outlier moved.
@@ -34,8 +37,11 @@ from numpy.typing import ArrayLike
 
 from ..camera.model import CameraModel
 from ..config import BundleConfig
+from ..edgelet import Edgelets
 from ..errors import InputError
 from ..geometry import se3
+from .bundle_edgelets import EdgeletLM
+from .bundle_inputs import EdgeletBundleInput, _checked_inputs, _Inputs
 from .bundle_kernels import ba_backsub, ba_linearise, ba_residuals, ba_robust_cost, ba_schur, tukey_cutoff_sq
 from .bundle_structure import BundleStructure, ReducedSolver, build_structure
 
@@ -59,6 +65,11 @@ class BundleResult:
     n_params: int  # free parameters: 6 per adjusted keyframe + 3 per point with an inlier
     outliers: np.ndarray  # input indices of the measurements flagged as outliers (PTAM §6.4)
     phase_seconds: dict = field(default_factory=dict)
+    # Agility §4.4, when edgelets were given: all of them (rows not adjusted are the input), the input indices of
+    # their measurements flagged as outliers, and the edgelet measurements still in the problem at the end.
+    edgelets: Edgelets | None = None
+    edgelet_outliers: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    n_edgelet_inliers: int = 0
 
     @property
     def sigma_dof(self) -> float:
@@ -75,62 +86,6 @@ def _abort_poller(abort: AbortFlag) -> Callable[[], bool]:
     if callable(abort):
         return abort
     raise InputError("bundle adjustment: abort must be a threading.Event, a callable or None")
-
-
-def _as_array(name: str, a, shape: tuple, dtype) -> np.ndarray:
-    a = np.asarray(a)
-    if a.ndim != len(shape) or any(s is not None and s != t for s, t in zip(shape, a.shape)):
-        want = "(" + ", ".join("n" if s is None else str(s) for s in shape) + ")"
-        raise InputError(f"bundle adjustment: {name} must have shape {want}, got {a.shape}")
-    if dtype is bool and a.dtype != np.bool_:
-        raise InputError(f"bundle adjustment: {name} must be a boolean mask, got {a.dtype}")
-    out = np.ascontiguousarray(a, dtype=dtype)
-    if out.dtype.kind == "f" and not np.isfinite(out).all():
-        raise InputError(f"bundle adjustment: {name} contains NaN or infinite values")
-    return out
-
-
-@dataclass(frozen=True)
-class _Inputs:
-    """The arguments of ``Bundle.adjust``, checked and converted to contiguous arrays of the kernels' dtypes."""
-
-    poses: np.ndarray
-    points: np.ndarray
-    meas_kf: np.ndarray
-    meas_pt: np.ndarray
-    meas_xy: np.ndarray
-    meas_level: np.ndarray
-    fixed_poses: np.ndarray
-    adjust_points: np.ndarray
-
-
-def _checked_inputs(
-    poses: ArrayLike,
-    points: ArrayLike,
-    meas_kf: ArrayLike,
-    meas_pt: ArrayLike,
-    meas_xy: ArrayLike,
-    meas_level: ArrayLike,
-    fixed_poses: ArrayLike,
-    adjust_points: ArrayLike | None,
-) -> _Inputs:
-    poses = _as_array("poses", poses, (None, 4, 4), np.float64)
-    points = _as_array("points", points, (None, 3), np.float64)
-    n, m = len(poses), len(points)
-    meas_kf = _as_array("meas_kf", meas_kf, (None,), np.int64)
-    k = len(meas_kf)
-    meas_pt = _as_array("meas_pt", meas_pt, (k,), np.int64)
-    meas_xy = _as_array("meas_xy", meas_xy, (k, 2), np.float64)
-    meas_level = _as_array("meas_level", meas_level, (k,), np.int64)
-    fixed_poses = _as_array("fixed_poses", fixed_poses, (n,), bool)
-    adjust_points = np.ones(m, bool) if adjust_points is None else _as_array("adjust_points", adjust_points, (m,), bool)
-    if k and (meas_kf.min() < 0 or meas_kf.max() >= n):
-        raise InputError(f"bundle adjustment: keyframe index out of range [0, {n})")
-    if k and (meas_pt.min() < 0 or meas_pt.max() >= m):
-        raise InputError(f"bundle adjustment: point index out of range [0, {m})")
-    if k and meas_level.min() < 0:
-        raise InputError("bundle adjustment: negative pyramid level")
-    return _Inputs(poses, points, meas_kf, meas_pt, meas_xy, meas_level, fixed_poses, adjust_points)
 
 
 class Bundle:
@@ -152,29 +107,39 @@ class Bundle:
         fixed_poses: ArrayLike,
         adjust_points: ArrayLike | None = None,
         abort: AbortFlag = None,
+        edgelets: EdgeletBundleInput | None = None,
     ) -> BundleResult:
         """Adjust the non-fixed poses and the points in ``adjust_points`` (default all).
 
         poses (N, 4, 4) T_cw, points (M, 3); measurement k is point ``meas_pt[k]`` seen in keyframe
         ``meas_kf[k]`` at level-0 pixel ``meas_xy[k]``, found on pyramid level ``meas_level[k]``.
         Measurements of points outside ``adjust_points`` are not used (PTAM eq. 11). ``abort``: a
-        ``threading.Event`` or a callable polled between LM iterations.
+        ``threading.Event`` or a callable polled between LM iterations. ``edgelets``: edgelets adjusted with
+        the poses and points (Agility §4.4), their measurements weighted by the same Tukey biweight.
         """
         t_start = time.perf_counter()
         inp = _checked_inputs(poses, points, meas_kf, meas_pt, meas_xy, meas_level, fixed_poses, adjust_points)
         should_abort = _abort_poller(abort)
-
-        st = build_structure(inp.meas_kf, inp.meas_pt, inp.fixed_poses, inp.adjust_points)
+        edg = None if edgelets is None else edgelets.checked(len(inp.poses))
+        edg_meas = None if edg is None else (edg.obs.kf, edg.obs.edgelet, edg.adjust_mask)
+        st = build_structure(inp.meas_kf, inp.meas_pt, inp.fixed_poses, inp.adjust_points, edg_meas)
         inv_sigma = np.ldexp(1.0, -inp.meas_level[st.sel])  # σ = 2^level px (PTAM §5.4)
         phases = {"setup": 0.0, "linearise": 0.0, "schur": 0.0, "solve": 0.0, "backsub": 0.0, "trial": 0.0}
         solver = ReducedSolver(st, dense=st.n_free <= self.cfg.dense_max_cameras)
         phases["setup"] = time.perf_counter() - t_start
-        state = _LMState(st, inp.poses[st.cams], inp.points[st.pts], inp.meas_xy[st.sel], inv_sigma)
+        edg_lm = EdgeletLM(self.camera, st, edg)
+        state = _LMState(st, inp.poses[st.cams], inp.points[st.pts], inp.meas_xy[st.sel], inv_sigma, edg_lm)
         status = self._levenberg_marquardt(state, solver, should_abort, phases)
-        return self._result(inp, state, status, phases, t_start)
+        return self._result(inp, state, status, phases, t_start, edg)
 
     def _result(
-        self, inp: _Inputs, s: _LMState, status: dict[str, Any], phases: dict[str, float], t_start: float
+        self,
+        inp: _Inputs,
+        s: _LMState,
+        status: dict[str, Any],
+        phases: dict[str, float],
+        t_start: float,
+        edg: EdgeletBundleInput | None,
     ) -> BundleResult:
         """The adjusted state written back into copies of the caller's poses and points, with the run's figures."""
         st = s.st
@@ -192,6 +157,7 @@ class Bundle:
             **summary,
             outliers=np.sort(st.sel[s.outlier]),
             phase_seconds=phases,
+            **s.edg.summary(s.P, edg),
         )
 
     def _levenberg_marquardt(
@@ -199,20 +165,24 @@ class Bundle:
     ) -> dict[str, Any]:
         """PTAM's Bundle::Compute / Do_LM_Step loop; updates ``s`` in place and returns the status flags."""
         lm = _LMProgress(self.cfg)
-        while not (lm.converged or lm.hit_max or lm.failed or lm.aborted) and s.use.any():
+        while not (lm.converged or lm.hit_max or lm.failed or lm.aborted) and s.any_use():
             if should_abort():
                 lm.aborted = True
                 break
             cost = self._linearise(s, phases)
             flagged = s.use & ~s.live
-            step = self._damped_step(s, solver, should_abort, phases, lm, cost, float(flagged.sum()))
+            eflagged = s.edg.flag()
+            n_flagged = float(flagged.sum()) + float(eflagged.sum()) if s.edg.n else float(flagged.sum())
+            step = self._damped_step(s, solver, should_abort, phases, lm, cost, n_flagged)
             if step is not None:
                 lm.accept()
-                s.P, s.X = step
+                s.P, s.X, F = step
+                s.edg.accept(F)
             s.outlier |= flagged
             s.use &= ~flagged
+            s.edg.retire(eflagged)
         # Nothing left to adjust (no measurements, or all of them outliers) is trivially converged.
-        lm.converged = lm.converged or not (s.use.any() or lm.aborted or lm.failed)
+        lm.converged = lm.converged or not (s.any_use() or lm.aborted or lm.failed)
         return lm.status()
 
     def _linearise(self, s: _LMState, phases: dict[str, float]) -> float:
@@ -221,10 +191,12 @@ class Bundle:
         cam, st = self._cam, s.st
         t = time.perf_counter()
         ba_residuals(cam, s.P, s.X, st.mcam, st.mpt, s.uv, s.inv_sigma, s.use, s.err, s.e2, s.bad)
-        s.c2 = c2 = tukey_cutoff_sq(s.e2, s.use, s.bad, self.cfg.min_tukey_sigma)
+        s.edg.residuals(s.P)
+        s.c2 = c2 = tukey_cutoff_sq(*s.joint_errors(), self.cfg.min_tukey_sigma)
         cost = ba_linearise(
             cam, s.P, s.X, st.mcam, st.mpt, s.uv, s.inv_sigma, s.use, c2, st.cam_row, s.U, s.ea, s.V, s.eb, s.W, s.live
         )
+        cost += s.edg.linearise(s.P, c2, (s.U, s.ea))
         phases["linearise"] += time.perf_counter() - t
         return cost
 
@@ -237,12 +209,12 @@ class Bundle:
         lm: _LMProgress,
         cost: float,
         n_flagged: float,
-    ) -> tuple[np.ndarray, np.ndarray] | None:
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None] | None:
         """Trial steps, raising λ after each rejected one, until one lowers ``cost`` or the run stops; returns
-        the new (poses, points) of the step that lowered it, else None."""
+        the new (poses, points, edgelet frames) of the step that lowered it, else None."""
         cfg = self.cfg
         new_cost = np.inf
-        trial: tuple[np.ndarray, np.ndarray] | None = None
+        trial: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None = None
         while new_cost > cost and not (lm.converged or lm.hit_max):
             if should_abort():
                 lm.aborted = True
@@ -259,10 +231,10 @@ class Bundle:
                     break
                 continue
             t = time.perf_counter()
-            dcam, dpts = step
-            if dcam @ dcam + np.vdot(dpts, dpts) < cfg.converge_squared_update:
+            dcam, dpts, dedg = step
+            if dcam @ dcam + np.vdot(dpts, dpts) + np.vdot(dedg, dedg) < cfg.converge_squared_update:
                 lm.converged = True
-            trial, new_cost = self._trial(s, dcam, dpts, n_flagged)
+            trial, new_cost = self._trial(s, step, n_flagged)
             if new_cost > cost:
                 lm.reject()
             lm.count_trial()
@@ -271,14 +243,16 @@ class Bundle:
 
     def _solve_step(
         self, s: _LMState, solver: ReducedSolver, lam: float, phases: dict[str, float]
-    ) -> tuple[np.ndarray, np.ndarray] | None:
-        """The damped step (pose updates μ of the free keyframes, point updates) from the blocks linearised in
-        ``s``: the points eliminated by the Schur complement; None when the reduced system does not factorise."""
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """The damped step (pose updates μ of the free keyframes, point updates, edgelet updates) from the blocks
+        linearised in ``s``: points and edgelets eliminated by the Schur complement; None when the reduced system
+        does not factorise."""
         st = s.st
         t = time.perf_counter()
         ba_schur(
             s.U, s.ea, s.V, s.eb, s.W, s.live, lam, st.mrow, st.pt_start, st.order, st.pair_id, s.blocks, s.rhs, s.Vinv
         )
+        s.edg.schur(lam, s.blocks, s.rhs)
         t1 = time.perf_counter()
         phases["schur"] += t1 - t
         try:
@@ -288,20 +262,23 @@ class Bundle:
         t2 = time.perf_counter()
         phases["solve"] += t2 - t1
         dpts = ba_backsub(s.Vinv, s.eb, s.W, s.live, st.mrow, st.pt_start, st.order, dcam)
+        dedg = s.edg.backsub(dcam)
         phases["backsub"] += time.perf_counter() - t2
-        return dcam, dpts
+        return dcam, dpts, dedg
 
     def _trial(
-        self, s: _LMState, dcam: np.ndarray, dpts: np.ndarray, n_flagged: float
-    ) -> tuple[tuple[np.ndarray, np.ndarray], float]:
-        """The (poses, points) after the step and their cost on the measurements live at linearisation, the
-        flagged ones scoring 1 each."""
+        self, s: _LMState, step: tuple[np.ndarray, np.ndarray, np.ndarray], n_flagged: float
+    ) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray | None], float]:
+        """The (poses, points, edgelet frames) after the step and their cost on the measurements live at
+        linearisation, the flagged ones scoring 1 each."""
         st = s.st
+        dcam, dpts, dedg = step
         P_new = s.P.copy()
         P_new[s.free_idx] = se3.exp(dcam.reshape(-1, 6)) @ s.P[s.free_idx]
         X_new = s.X + dpts
         ba_residuals(self._cam, P_new, X_new, st.mcam, st.mpt, s.uv, s.inv_sigma, s.live, s.err, s.e2, s.bad)
-        return (P_new, X_new), ba_robust_cost(s.e2, s.bad, s.live, s.c2) + n_flagged
+        F_new, edg_cost = s.edg.trial(P_new, dedg, s.c2)
+        return (P_new, X_new, F_new), ba_robust_cost(s.e2, s.bad, s.live, s.c2) + edg_cost + n_flagged
 
 
 @dataclass
@@ -348,9 +325,10 @@ class _LMProgress:
 class _LMState:
     """The compact problem's parameters and per-iteration work arrays."""
 
-    def __init__(self, st: BundleStructure, P, X, uv, inv_sigma):
+    def __init__(self, st: BundleStructure, P, X, uv, inv_sigma, edg: EdgeletLM):
         kc, mc, nf = len(st.sel), len(st.pts), st.n_free
         self.st = st
+        self.edg = edg
         self.free_idx = np.flatnonzero(st.free)
         self.P = P.copy()
         self.X = X.copy()
@@ -371,6 +349,16 @@ class _LMState:
         self.rhs = np.zeros(6 * nf)
         self.Vinv = np.zeros((mc, 3, 3))
         self.c2 = np.nan
+
+    def any_use(self) -> bool:
+        return bool(self.use.any() or self.edg.use.any())
+
+    def joint_errors(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(e², use, bad) of the points and then the edgelets, for one Tukey cut-off (``bundle_edgelets``)."""
+        if not self.edg.n:
+            return self.e2, self.use, self.bad
+        e = self.edg
+        return tuple(np.concatenate(p) for p in ((self.e2, e.e2), (self.use, e.use), (self.bad, e.bad)))  # type: ignore[return-value]
 
     def summary(self, cam) -> dict:
         st = self.st

@@ -34,30 +34,91 @@ class BundleStructure:
     pair_rows: np.ndarray  # (B,) block row of each block of S (the first n_free are the diagonal)
     pair_cols: np.ndarray  # (B,) block column (≤ row: S is stored as its lower triangle)
     pair_id: np.ndarray  # block index of each camera pair in ba_pair_script's walk
+    edgelets: EdgeletStructure | None = None  # Agility §4.4: the edgelets' part, when there are edgelets
 
     @property
     def n_free(self) -> int:
         return int(self.free.sum())
 
 
+@dataclass(frozen=True)
+class EdgeletStructure:
+    """The edgelets of one adjustment, laid out like the points (Agility §4.4: 4-DOF blocks eliminated alike)."""
+
+    ids: np.ndarray  # (Ec,) input indices of the adjusted edgelets with a measurement
+    sel: np.ndarray  # (Kec,) input indices of the edgelet measurements in the problem
+    mcam: np.ndarray  # (Kec,) compact camera of each measurement
+    medg: np.ndarray  # (Kec,) compact edgelet of each measurement
+    mrow: np.ndarray  # (Kec,) cam_row[mcam]
+    order: np.ndarray  # (Kec,) measurements sorted by edgelet, then camera row
+    e_start: np.ndarray  # (Ec + 1,) edgelet e's measurements are order[e_start[e]:e_start[e + 1]]
+    pair_id: np.ndarray  # block index of each camera pair in the edgelets' part of ba_pair_script's walk
+
+    @staticmethod
+    def empty() -> EdgeletStructure:
+        z = np.zeros(0, np.int64)
+        return EdgeletStructure(z, z, z, z, z, z, np.zeros(1, np.int64), z)
+
+
+def _landmarks(kf_idx: np.ndarray, lm: np.ndarray, n_cams: int, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """Compact landmark ids and landmark indices of the measurements; refuses a keyframe measuring one twice."""
+    ids, mlm = np.unique(lm, return_inverse=True)
+    if len(np.unique(mlm.astype(np.int64) * max(n_cams, 1) + kf_idx)) != len(lm):
+        raise InputError(f"bundle adjustment: a keyframe measures the same {what} twice")
+    return ids, mlm.astype(np.int64)
+
+
+def _starts(mlm: np.ndarray, n: int) -> np.ndarray:
+    return np.concatenate([[0], np.cumsum(np.bincount(mlm, minlength=n))]).astype(np.int64)
+
+
+def _with_edgelets(esel, eid, emcam, cam_row, points: tuple, n_free: int):
+    """The edgelets' structure and the camera pairs of one walk over the points and then the edgelets, which
+    numbers every pair that either shares; returns (edgelet structure, points' pair ids, pair rows, columns)."""
+    mpt, mrow, order, pt_start = points
+    ids, medg = _landmarks(emcam, eid, len(cam_row), "edgelet")
+    emrow = cam_row[emcam]
+    eorder = np.lexsort((emrow, medg)).astype(np.int64)
+    e_start = _starts(medg, len(ids))
+    pair_id, rows, cols = ba_pair_script(
+        np.concatenate([pt_start, pt_start[-1] + e_start[1:]]),
+        np.concatenate([order, len(mpt) + eorder]),
+        np.concatenate([mrow, emrow]),
+        n_free,
+    )
+    per_pt = np.bincount(mpt[mrow >= 0], minlength=len(pt_start) - 1)
+    n_pt = int(np.sum(per_pt * (per_pt - 1) // 2))
+    edg = EdgeletStructure(ids, esel, emcam, medg, emrow, eorder, e_start, n_free + pair_id[n_pt:])
+    return edg, pair_id[:n_pt], rows, cols
+
+
 def build_structure(
-    meas_kf: np.ndarray, meas_pt: np.ndarray, fixed_poses: np.ndarray, adjust_points: np.ndarray
+    meas_kf: np.ndarray,
+    meas_pt: np.ndarray,
+    fixed_poses: np.ndarray,
+    adjust_points: np.ndarray,
+    edgelet_meas: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> BundleStructure:
-    """Only measurements of points in ``adjust_points`` take part (PTAM eq. 11: j ∈ Z)."""
+    """Only measurements of points in ``adjust_points`` take part (PTAM eq. 11: j ∈ Z). ``edgelet_meas``: the
+    keyframe and edgelet of every edgelet measurement and the edgelets to adjust (Agility §4.4), or None."""
     sel = np.flatnonzero(adjust_points[meas_pt])
-    cams, mcam = np.unique(meas_kf[sel], return_inverse=True)
-    pts, mpt = np.unique(meas_pt[sel], return_inverse=True)
-    pair_key = mpt.astype(np.int64) * max(len(cams), 1) + mcam
-    if len(np.unique(pair_key)) != len(sel):
-        raise InputError("bundle adjustment: a keyframe measures the same point twice")
+    esel = np.zeros(0, np.int64) if edgelet_meas is None else np.flatnonzero(edgelet_meas[2][edgelet_meas[1]])
+    ekf, eid = (np.zeros(0, np.int64),) * 2 if edgelet_meas is None else (edgelet_meas[0][esel], edgelet_meas[1][esel])
+    cams, inverse = np.unique(np.concatenate([meas_kf[sel], ekf]), return_inverse=True)
+    mcam, emcam = inverse[: len(sel)], inverse[len(sel) :].astype(np.int64)
+    pts, mpt = _landmarks(mcam, meas_pt[sel], len(cams), "point")
     free = ~fixed_poses[cams]
     n_free = int(free.sum())
     cam_row = np.full(len(cams), -1, np.int64)
     cam_row[free] = np.arange(n_free)
     mrow = cam_row[mcam]
     order = np.lexsort((mrow, mpt)).astype(np.int64)
-    pt_start = np.concatenate([[0], np.cumsum(np.bincount(mpt, minlength=len(pts)))]).astype(np.int64)
-    pair_id, rows, cols = ba_pair_script(pt_start, order, mrow, n_free)
+    pt_start = _starts(mpt, len(pts))
+    if edgelet_meas is None:
+        edg = None
+        pair_id, rows, cols = ba_pair_script(pt_start, order, mrow, n_free)
+    else:
+        edg, pair_id, rows, cols = _with_edgelets(esel, eid, emcam, cam_row, (mpt, mrow, order, pt_start), n_free)
     diag = np.arange(n_free, dtype=np.int64)
     return BundleStructure(
         cams=cams,
@@ -73,6 +134,7 @@ def build_structure(
         pair_rows=np.concatenate([diag, rows]),
         pair_cols=np.concatenate([diag, cols]),
         pair_id=n_free + pair_id,
+        edgelets=edg,
     )
 
 

@@ -23,8 +23,9 @@ from ..map.keyframe import KeyFrame
 from ..map.map import SRC_EPIPOLAR, SRC_REFIND, SRC_ROOT, SRC_TRACKER, Map
 from ..map.snapshot import MapSnapshot
 from ..patch.finder import PatchFinder
-from .bundle import Bundle
-from .edgelet_mapping import integrate_keyframe
+from .bundle import Bundle, BundleResult
+from .edgelet_map_ba import edgelet_ba_input, handle_edgelet_outliers, keep_edgelets
+from .edgelet_mapping import integrate_keyframe, rebuild_visibility_tables
 from .epipolar import epipolar_matches, unit_plane_corners
 from .local_ba import local_sets
 from .normals import NormalEstimator
@@ -94,6 +95,8 @@ class MapMaker:
         if len(self.map.keyframes):
             self.ready = True
             self.wiggle_depth_normalised = cfg.init.baseline_m / self.map.keyframes[0].scene_depth_mean
+            if cfg.edgelets.enabled and not self.map.edgelets.tables:  # a map from a file (Agility §5.2)
+                rebuild_visibility_tables(self.map, cfg)
             self.publish()
 
     # -- interface for the tracker's thread -----------------------------------------------------------------
@@ -331,12 +334,10 @@ class MapMaker:
             sets = local_sets(
                 m.kf_T_cw, m.meas_kf, m.meas_pt, m.n_points_total, n - 1, self.cfg.bundle.local_neighbours, fixed
             )
-            fixed_poses = ~sets.adjust
-            adjust_points = sets.points
+            fixed_poses, adjust_points = ~sets.adjust, sets.points
         else:
-            fixed_poses = fixed
-            adjust_points = ~m.bad
-        adjust_points = adjust_points & ~m.ray
+            fixed_poses, adjust_points = fixed, ~m.bad
+        edgelets = edgelet_ba_input(m, self.cfg, sets.adjust if recent else None)  # Agility §4.4
         self.stats["ba_running"] = "local" if recent else "global"
         try:
             res = self.bundle.adjust(
@@ -347,8 +348,9 @@ class MapMaker:
                 m.meas_xy[use],
                 m.meas_level[use],
                 fixed_poses,
-                adjust_points,
+                adjust_points & ~m.ray,
                 abort=self._abort,
+                edgelets=edgelets,
             )
         finally:
             self.stats["ba_running"] = None
@@ -356,6 +358,11 @@ class MapMaker:
         self.stats["local_ba" if recent else "global_ba"].append(
             (n, 1e3 * res.phase_seconds.get("total", 0.0), bool(res.converged))
         )
+        self._keep_ba_result(res, recent, np.flatnonzero(use), edgelets)
+
+    def _keep_ba_result(self, res: BundleResult, recent: bool, used: np.ndarray, edgelets) -> None:
+        """Write an adjustment's result into the map and handle its outliers (PTAM code ``BundleAdjust``)."""
+        m = self.map
         if res.failed:
             # PTAM code (MapMaker::BundleAdjust): "Cholesky failure in bundle adjust. The map is probably
             # corrupt: Ditching the map." The system resets.
@@ -364,13 +371,15 @@ class MapMaker:
             self.reset_requested = True
             return
         if res.accepted > 0:
-            m.set_poses(np.arange(n), res.poses)
+            m.set_poses(np.arange(m.n_keyframes), res.poses)
             m.set_points(np.arange(m.n_points_total), res.points)
+            keep_edgelets(m, edgelets, res)
             self.full_converged = False
             if recent:
                 self.recent_converged = False
         if len(res.outliers):
-            self._handle_outliers(np.flatnonzero(use)[res.outliers])
+            self._handle_outliers(used[res.outliers])
+        handle_edgelet_outliers(m, self.cfg, res.edgelet_outliers)
         if res.converged:
             self.recent_converged = True
             if not recent:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ptam.bench.ba_edgelets import EdgeletBA, edgelet_errors, synthetic_edgelets  # noqa: F401
 from ptam.bench.ba_timing import CAMERA, NOISE_PX, OUTLIER_FRACTION, WALL_DEPTH_M, SyntheticBA, _observe, look_at
 from ptam.camera.fov import FovCamera
 

@@ -1,0 +1,280 @@
+"""Bundle-adjustment kernels for edgelets: their 4-DOF blocks in PTAM's Schur-complement LM (Agility §4.4).
+
+``ba_edgelet_along`` places the two virtual sample points of eq. 6 ±5 px from the projected centre at the current
+state. An edgelet is eliminated exactly like a point (PTAM §6.3, Hartley & Zisserman A6.4), with 4×4 blocks
+instead of 3×3: per measurement the two perpendicular distances ε_n (eq. 7) and their Jacobians ∂ε/∂μ_K (2×6,
+eq. 8) and ∂ε/∂μ_E (2×4, eq. 9), as ``ptam.edgelet.edgelet_ba_kernels.edgelet_ba_terms`` has them, are weighted by
+the Tukey biweight and accumulated:
+
+* ``ba_edgelet_residuals``: ε and |ε|² alone (the Tukey cut-off's input and the trial steps' cost).
+* ``ba_edgelet_linearise``: camera blocks U (6×6, added to the points' U), edgelet blocks V (4×4), camera-edgelet
+  blocks W = AᵀB (6×4) and the gradients ε_a, ε_b. ε is predicted − measured, the points' error measured −
+  predicted; the gradients take −ε so that one step solves both.
+* ``ba_edgelet_schur``: S −= Σ W V*⁻¹ Wᵀ over every camera pair that shares an edgelet and the reduced
+  right-hand side, V* the diagonal × (1 + λ); it continues the walk of ``ba_pair_script`` after the points.
+* ``ba_edgelet_backsub``: δμ_E = V*⁻¹ (ε_b − Σ Wᵀ δμ_K).
+
+Per Agility §8 every distance has unit (one-pixel) variance. The numpy references are in
+``tests/reference/bundle_edgelets.py``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ..camera.camproj_kernels import project, project_jac
+
+
+@njit(nogil=True, cache=True)
+def ba_edgelet_along(cam, poses, frames, mcam, medg, offset_px, along):
+    """Eq. 6: the E-frame z of each measurement's two sample points, ∓``offset_px``/|d|, |d| the image length of a
+    unit step along the edgelet (eq. 5) at its centre in that keyframe; ``along`` (M, 2) is written."""
+    J = np.empty((2, 3))
+    for k in range(mcam.shape[0]):
+        T = poses[mcam[k]]
+        E = frames[medg[k]]
+        X = T[0, 0] * E[0, 3] + T[0, 1] * E[1, 3] + T[0, 2] * E[2, 3] + T[0, 3]
+        Y = T[1, 0] * E[0, 3] + T[1, 1] * E[1, 3] + T[1, 2] * E[2, 3] + T[1, 3]
+        Z = T[2, 0] * E[0, 3] + T[2, 1] * E[1, 3] + T[2, 2] * E[2, 3] + T[2, 3]
+        dx = T[0, 0] * E[0, 2] + T[0, 1] * E[1, 2] + T[0, 2] * E[2, 2]
+        dy = T[1, 0] * E[0, 2] + T[1, 1] * E[1, 2] + T[1, 2] * E[2, 2]
+        dz = T[2, 0] * E[0, 2] + T[2, 1] * E[1, 2] + T[2, 2] * E[2, 2]
+        _, _, ok = project_jac(cam, X, Y, Z, J)
+        if not ok:  # the centre is behind the camera: the measurement is invalid (edgelet_ba_terms)
+            along[k, 0] = 0.0
+            along[k, 1] = 0.0
+            continue
+        du = J[0, 0] * dx + J[0, 1] * dy + J[0, 2] * dz
+        dv = J[1, 0] * dx + J[1, 1] * dy + J[1, 2] * dz
+        z = offset_px / max(math.sqrt(du * du + dv * dv), 1e-12)
+        along[k, 0] = -z
+        along[k, 1] = z
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _sample_in_camera(T, E, z):
+    """The sample point at E-frame z on the edgelet's axis, in the frame of pose T."""
+    wx = E[0, 3] + z * E[0, 2]
+    wy = E[1, 3] + z * E[1, 2]
+    wz = E[2, 3] + z * E[2, 2]
+    return (
+        T[0, 0] * wx + T[0, 1] * wy + T[0, 2] * wz + T[0, 3],
+        T[1, 0] * wx + T[1, 1] * wy + T[1, 2] * wz + T[1, 3],
+        T[2, 0] * wx + T[2, 1] * wy + T[2, 2] * wz + T[2, 3],
+    )
+
+
+@njit(nogil=True, cache=True)
+def ba_edgelet_residuals(cam, poses, frames, mcam, medg, line_a, line_n, along, use, err, e2, bad):
+    """Eq. 7 for the measurements in ``use``: ε_n = m̂·(s_n − a) (M, 2) px, e2 = ε₁² + ε₂², bad = a sample point
+    behind the camera (as ``edgelet_ba_terms``, without the Jacobians)."""
+    for k in range(mcam.shape[0]):
+        err[k, 0] = 0.0
+        err[k, 1] = 0.0
+        e2[k] = 0.0
+        bad[k] = False
+        if not use[k]:
+            continue
+        T = poses[mcam[k]]
+        E = frames[medg[k]]
+        for s in range(2):
+            X, Y, Z = _sample_in_camera(T, E, along[k, s])
+            if Z <= 0.0:
+                bad[k] = True
+                break
+            u, v, _ = project(cam, X, Y, Z)
+            err[k, s] = line_n[k, 0] * (u - line_a[k, 0]) + line_n[k, 1] * (v - line_a[k, 1])
+        if bad[k]:
+            err[k, 0] = 0.0
+            err[k, 1] = 0.0
+        else:
+            e2[k] = err[k, 0] * err[k, 0] + err[k, 1] * err[k, 1]
+
+
+@njit(nogil=True, cache=True)
+def _measurement_rows(cam, T, E, z2, a, n, J, jp, je, r):
+    """One measurement's residuals r (2,) and Jacobian rows jp (2, 6), je (2, 4) (``edgelet_ba_terms``)."""
+    # The edgelet's x- and y-axes in the camera frame.
+    xc0 = T[0, 0] * E[0, 0] + T[0, 1] * E[1, 0] + T[0, 2] * E[2, 0]
+    xc1 = T[1, 0] * E[0, 0] + T[1, 1] * E[1, 0] + T[1, 2] * E[2, 0]
+    xc2 = T[2, 0] * E[0, 0] + T[2, 1] * E[1, 0] + T[2, 2] * E[2, 0]
+    yc0 = T[0, 0] * E[0, 1] + T[0, 1] * E[1, 1] + T[0, 2] * E[2, 1]
+    yc1 = T[1, 0] * E[0, 1] + T[1, 1] * E[1, 1] + T[1, 2] * E[2, 1]
+    yc2 = T[2, 0] * E[0, 1] + T[2, 1] * E[1, 1] + T[2, 2] * E[2, 1]
+    for s in range(2):
+        z = z2[s]
+        X, Y, Z = _sample_in_camera(T, E, z)
+        u, v, _ = project_jac(cam, X, Y, Z, J)
+        r[s] = n[0] * (u - a[0]) + n[1] * (v - a[1])
+        g0 = n[0] * J[0, 0] + n[1] * J[1, 0]
+        g1 = n[0] * J[0, 1] + n[1] * J[1, 1]
+        g2 = n[0] * J[0, 2] + n[1] * J[1, 2]
+        jp[s, 0] = g0
+        jp[s, 1] = g1
+        jp[s, 2] = g2
+        jp[s, 3] = Y * g2 - Z * g1
+        jp[s, 4] = Z * g0 - X * g2
+        jp[s, 5] = X * g1 - Y * g0
+        gx = g0 * xc0 + g1 * xc1 + g2 * xc2
+        gy = g0 * yc0 + g1 * yc1 + g2 * yc2
+        je[s, 0] = gx
+        je[s, 1] = gy
+        je[s, 2] = -z * gy
+        je[s, 3] = z * gx
+
+
+@njit(nogil=True, cache=True)
+def ba_edgelet_linearise(cam, poses, frames, meas, use, e2, bad, c2, mrow, U, ea, V, eb, W, live):
+    """Add the Tukey-weighted edgelet terms to U, ε_a (free camera rows ``mrow``, −1 fixed) and set V, ε_b and W
+    (per measurement); ``live`` (out) marks the measurements in the system. ``meas`` = (mcam, medg, line_a,
+    line_n, along); ``e2``, ``bad`` from ``ba_edgelet_residuals``; residuals and Jacobians are those of
+    ``edgelet_ba_terms`` (eq. 7–9)."""
+    mcam, medg, line_a, line_n, along = meas
+    V[:] = 0.0
+    eb[:] = 0.0
+    J = np.empty((2, 3))
+    jp = np.empty((2, 6))
+    je = np.empty((2, 4))
+    res = np.empty(2)
+    for k in range(mcam.shape[0]):
+        live[k] = False
+        W[k] = 0.0
+        if not use[k] or bad[k] or e2[k] >= c2:
+            continue
+        live[k] = True
+        _measurement_rows(cam, poses[mcam[k]], frames[medg[k]], along[k], line_a[k], line_n[k], J, jp, je, res)
+        # Square root of the Tukey weight on the errors and the Jacobians, as for points (PTAM code).
+        sw = 1.0 - e2[k] / c2
+        _accumulate(jp, je, res, sw, medg[k], mrow[k], k, U, ea, V, eb, W)
+    for e in range(V.shape[0]):
+        for a in range(4):
+            for b in range(a):
+                V[e, b, a] = V[e, a, b]
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _accumulate(jp, je, err, sw, e, r, k, U, ea, V, eb, W):
+    for s in range(2):
+        res = -sw * err[s]
+        for a in range(4):
+            ja = sw * je[s, a]
+            for b in range(a + 1):
+                V[e, a, b] += ja * sw * je[s, b]
+            eb[e, a] += ja * res
+        if r < 0:
+            continue
+        for a in range(6):
+            pa = sw * jp[s, a]
+            for b in range(6):
+                U[r, a, b] += pa * sw * jp[s, b]
+            ea[r, a] += pa * res
+            for b in range(4):
+                W[k, a, b] += pa * sw * je[s, b]
+
+
+@njit(nogil=True, cache=True)
+def inv_sym4(M, lam, out, L, Li):
+    """out = (M with its diagonal × (1 + λ))⁻¹ by Cholesky, or zeros when that is not positive definite (as
+    ``inv_sym3`` does for points). ``L``, ``Li`` are 4×4 scratch."""
+    for i in range(4):
+        for j in range(i + 1):
+            s = M[i, j] * (1.0 + lam) if i == j else M[i, j]
+            for k in range(j):
+                s -= L[i, k] * L[j, k]
+            if i == j:
+                if not s > 0.0:
+                    out[:] = 0.0
+                    return
+                L[i, i] = math.sqrt(s)
+            else:
+                L[i, j] = s / L[j, j]
+    for i in range(4):
+        Li[i, i] = 1.0 / L[i, i]
+        for j in range(i):
+            s = 0.0
+            for k in range(j, i):
+                s -= L[i, k] * Li[k, j]
+            Li[i, j] = s / L[i, i]
+        for j in range(i + 1, 4):
+            Li[i, j] = 0.0
+    for i in range(4):
+        for j in range(4):
+            s = 0.0
+            for k in range(max(i, j), 4):
+                s += Li[k, i] * Li[k, j]
+            out[i, j] = s
+
+
+@njit(nogil=True, cache=True)
+def _sub_wvwt4(blocks, q, WVa, W, kb):
+    """blocks[q] −= WVa · W[kb]ᵀ (6×4 · 4×6)."""
+    for a in range(6):
+        for b in range(6):
+            s = 0.0
+            for c in range(4):
+                s += WVa[a, c] * W[kb, b, c]
+            blocks[q, a, b] -= s
+
+
+@njit(nogil=True, cache=True)
+def ba_edgelet_schur(V, eb, W, live, lam, mrow, e_start, order, pair_id, blocks, rhs, Vinv):
+    """Subtract the edgelets' W V*⁻¹ Wᵀ from the reduced system's ``blocks`` and W V*⁻¹ ε_b from ``rhs``; V*⁻¹
+    (E, 4, 4) is kept for the back-substitution. ``order`` lists the measurements by edgelet (``e_start``), then
+    camera row; ``pair_id`` is the edgelets' part of ``ba_pair_script``'s walk."""
+    WVa = np.empty((6, 4))
+    L = np.zeros((4, 4))
+    Li = np.zeros((4, 4))
+    q = 0
+    for e in range(e_start.shape[0] - 1):
+        inv_sym4(V[e], lam, Vinv[e], L, Li)
+        Vi = Vinv[e]
+        for ia in range(e_start[e], e_start[e + 1]):
+            ka = order[ia]
+            ra = mrow[ka]
+            if ra < 0:
+                continue
+            if live[ka]:
+                for a in range(6):
+                    for b in range(4):
+                        s = 0.0
+                        for c in range(4):
+                            s += W[ka, a, c] * Vi[c, b]
+                        WVa[a, b] = s
+                    rhs[6 * ra + a] -= (
+                        WVa[a, 0] * eb[e, 0] + WVa[a, 1] * eb[e, 1] + WVa[a, 2] * eb[e, 2] + (WVa[a, 3] * eb[e, 3])
+                    )
+                _sub_wvwt4(blocks, ra, WVa, W, ka)
+            for ib in range(e_start[e], ia):
+                kb = order[ib]
+                if mrow[kb] < 0:
+                    continue
+                pid = pair_id[q]
+                q += 1
+                if live[ka] and live[kb]:
+                    _sub_wvwt4(blocks, pid, WVa, W, kb)
+
+
+@njit(nogil=True, cache=True)
+def ba_edgelet_backsub(Vinv, eb, W, live, mrow, e_start, order, dcam):
+    """Edgelet updates δμ_E = V*⁻¹ (ε_b − Σ_j W_jᵀ δμ_j) (E, 4) from the camera updates dcam (6·n_free,)."""
+    n = e_start.shape[0] - 1
+    de = np.zeros((n, 4))
+    v = np.empty(4)
+    for e in range(n):
+        for b in range(4):
+            v[b] = eb[e, b]
+        for i in range(e_start[e], e_start[e + 1]):
+            k = order[i]
+            r = mrow[k]
+            if r < 0 or not live[k]:
+                continue
+            for a in range(6):
+                d = dcam[6 * r + a]
+                for b in range(4):
+                    v[b] -= W[k, a, b] * d
+        for a in range(4):
+            de[e, a] = Vinv[e, a, 0] * v[0] + Vinv[e, a, 1] * v[1] + Vinv[e, a, 2] * v[2] + Vinv[e, a, 3] * v[3]
+    return de

@@ -1,0 +1,178 @@
+"""The edgelets' part of one bundle adjustment (Agility §4.4): their parameters and per-iteration work arrays.
+
+Every keyframe measurement of an edgelet gives two perpendicular distances ε_n from virtual sample points ±5 px
+from its projected centre to the measured line (eq. 6–7); the edgelet's four degrees of freedom (eq. 9) are
+eliminated by the Schur complement like a point's three (``bundle_edgelet_kernels``). An ``EdgeletLM`` without
+edgelets adds nothing anywhere, so a points-only adjustment runs exactly as before.
+
+Robust weights. §4.4 chose distances in pixels because it "makes them compatible with the M-Estimator also used
+for point features", and §8 gives points and edgelets alike "an independent single-pixel variance": one Tukey
+biweight serves both, with its cut-off from the median of all squared errors — the points' σ-normalised
+|e|² (σ = 2^level) and the edgelets' ε₁² + ε₂², two pixel-unit residuals per measurement as a point has. An
+edgelet measurement beyond the cut-off (or with a sample point behind the camera) leaves the problem and is
+reported as an outlier, as a point measurement is (PTAM §6.4).
+
+Sample points. Eq. 6 places them at ∓5/|d| on the edgelet's axis, |d| its image length per unit length. They are
+placed again at every linearisation, from the current state, and kept for that iteration's trial steps (whose
+costs are then comparable). Placed once at the start instead, they stay fixed in metres while the edgelet turns:
+an edgelet turning towards its viewing rays brings both closer to its projected centre, which fits any line
+through the centre better, and a poorly determined edgelet (nearly parallel to the baseline) slid that way by
+tens of degrees over many iterations (measured on the bench's exploring map). The Jacobians treat them as fixed;
+the term this leaves out is proportional to the angle between the projected edgelet and the measured line, which
+vanishes at the solution.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..camera.model import CameraModel
+from ..edgelet import EDGELET_DOF, Edgelets, perp
+from ..geometry import se3
+from .bundle_edgelet_kernels import (
+    ba_edgelet_along,
+    ba_edgelet_backsub,
+    ba_edgelet_linearise,
+    ba_edgelet_residuals,
+    ba_edgelet_schur,
+)
+from .bundle_inputs import EdgeletBundleInput
+from .bundle_kernels import ba_robust_cost
+from .bundle_structure import BundleStructure, EdgeletStructure
+
+
+def _frames_updated(F: np.ndarray, de: np.ndarray) -> np.ndarray:
+    """E_WE ← E_WE · exp(μ) for μ (E, 4) in each edgelet's own frame, re-orthonormalised (``Edgelets.updated``)."""
+    mu6 = np.zeros((len(F), 6))
+    mu6[:, EDGELET_DOF] = de
+    return Edgelets.from_frames(F @ se3.exp(mu6)).frames()
+
+
+class EdgeletLM:
+    """The adjusted edgelets (frames E_WE), their measurements and the blocks of the current linearisation."""
+
+    def __init__(self, camera: CameraModel, st: BundleStructure, inp: EdgeletBundleInput | None):
+        es = st.edgelets if st.edgelets is not None and inp is not None else EdgeletStructure.empty()
+        self.es = es
+        self.n = len(es.sel)
+        self.use = np.ones(self.n, bool)
+        self.outlier = np.zeros(self.n, bool)
+        self.live = np.zeros(self.n, bool)
+        self.e2 = np.zeros(self.n)
+        self.bad = np.zeros(self.n, bool)
+        if inp is None:
+            return
+        self.cam = np.ascontiguousarray(camera.kernel_params(), dtype=np.float64)
+        self.F = np.ascontiguousarray(inp.edgelets.subset(es.ids).frames())
+        self.a = inp.obs.a[es.sel]
+        b = inp.obs.b[es.sel]
+        self.m_hat = np.ascontiguousarray(perp(b / np.linalg.norm(b, axis=1, keepdims=True)))
+        self.offset_px = inp.cfg.ba_sample_offset_px
+        self.along = np.zeros((self.n, 2))
+        ne = len(es.ids)
+        self.V = np.zeros((ne, 4, 4))
+        self.eb = np.zeros((ne, 4))
+        self.W = np.zeros((self.n, 6, 4))
+        self.Vinv = np.zeros((ne, 4, 4))
+        self.err = np.zeros((self.n, 2))
+
+    def _residuals(self, P: np.ndarray, F: np.ndarray, use: np.ndarray) -> None:
+        """e2 and bad (a sample point behind the camera) of the measurements in ``use`` at poses P, frames F."""
+        es = self.es
+        ba_edgelet_residuals(
+            self.cam, P, F, es.mcam, es.medg, self.a, self.m_hat, self.along, use, self.err, self.e2, self.bad
+        )
+
+    def residuals(self, P: np.ndarray) -> None:
+        """The sample points placed at the current state (eq. 6), then the residuals there; a trial keeps the
+        sample points of its linearisation, so that its cost is comparable."""
+        if self.n:
+            es = self.es
+            ba_edgelet_along(self.cam, P, self.F, es.mcam, es.medg, self.offset_px, self.along)
+            self._residuals(P, self.F, self.use)
+
+    def linearise(self, P: np.ndarray, c2: float, cam_row_blocks: tuple[np.ndarray, np.ndarray]) -> float:
+        """Add the edgelets' Tukey-weighted terms to the camera blocks (U, ε_a); their robust cost."""
+        if not self.n:
+            return 0.0
+        U, ea = cam_row_blocks
+        es = self.es
+        meas = (es.mcam, es.medg, self.a, self.m_hat, self.along)
+        ba_edgelet_linearise(
+            self.cam,
+            P,
+            self.F,
+            meas,
+            self.use,
+            self.e2,
+            self.bad,
+            c2,
+            es.mrow,
+            U,
+            ea,
+            self.V,
+            self.eb,
+            self.W,
+            self.live,
+        )
+        return float(ba_robust_cost(self.e2, self.bad, self.use, c2))
+
+    def schur(self, lam: float, blocks: np.ndarray, rhs: np.ndarray) -> None:
+        if self.n:
+            es = self.es
+            ba_edgelet_schur(
+                self.V,
+                self.eb,
+                self.W,
+                self.live,
+                lam,
+                es.mrow,
+                es.e_start,
+                es.order,
+                es.pair_id,
+                blocks,
+                rhs,
+                self.Vinv,
+            )
+
+    def backsub(self, dcam: np.ndarray) -> np.ndarray:
+        """The edgelet updates (E, 4) for camera updates ``dcam``."""
+        if not self.n:
+            return np.zeros((0, 4))
+        es = self.es
+        return ba_edgelet_backsub(self.Vinv, self.eb, self.W, self.live, es.mrow, es.e_start, es.order, dcam)
+
+    def trial(self, P_new: np.ndarray, de: np.ndarray, c2: float) -> tuple[np.ndarray | None, float]:
+        """The frames after the step ``de`` and their cost at ``P_new`` on the measurements live at linearisation."""
+        if not self.n:
+            return None, 0.0
+        F_new = _frames_updated(self.F, de)
+        self._residuals(P_new, F_new, self.live)
+        return F_new, float(ba_robust_cost(self.e2, self.bad, self.live, c2))
+
+    def accept(self, F_new: np.ndarray | None) -> None:
+        if F_new is not None:
+            self.F = F_new
+
+    def flag(self) -> np.ndarray:
+        """The measurements that dropped out of the system at the last linearisation."""
+        return self.use & ~self.live
+
+    def retire(self, flagged: np.ndarray) -> None:
+        self.outlier |= flagged
+        self.use &= ~flagged
+
+    def summary(self, P: np.ndarray, inp: EdgeletBundleInput | None) -> dict:
+        """The adjusted edgelets (all of the input's, rows not adjusted unchanged), the outliers' input indices
+        and the inlier count at the returned state."""
+        if inp is None:
+            return {}
+        out = inp.edgelets
+        if self.n:
+            self.residuals(P)
+            done = Edgelets.from_frames(self.F)
+            centre, direction, normal = out.centre.copy(), out.direction.copy(), out.normal.copy()
+            centre[self.es.ids], direction[self.es.ids], normal[self.es.ids] = done.centre, done.direction, done.normal
+            out = Edgelets(centre, direction, normal)
+        outliers = np.sort(self.es.sel[self.outlier]) if self.n else np.zeros(0, np.int64)
+        return {"edgelets": out, "edgelet_outliers": outliers, "n_edgelet_inliers": int((self.use & ~self.bad).sum())}

@@ -1,0 +1,50 @@
+"""numpy references for ``ptam.mapping.bundle_edgelet_kernels`` (Agility §4.4): plain numpy, dense matrices."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def ba_edgelet_linearise_ref(err, Jp, Je, e2, bad, use, c2, mrow, medg, n_free, n_edgelets):
+    """The edgelets' U, ε_a, V, ε_b, W (zero where not live or the camera is fixed) and live."""
+    live = use & ~bad & (e2 < c2)
+    sw = np.where(live, 1.0 - e2 / c2, 0.0)[:, None, None]
+    A, B = Jp * sw, Je * sw
+    r = -err * sw[:, :, 0]
+    free = live & (mrow >= 0)
+    U = np.zeros((n_free, 6, 6))
+    ea = np.zeros((n_free, 6))
+    np.add.at(U, mrow[free], np.einsum("ksa,ksb->kab", A[free], A[free]))
+    np.add.at(ea, mrow[free], np.einsum("ksa,ks->ka", A[free], r[free]))
+    V = np.zeros((n_edgelets, 4, 4))
+    eb = np.zeros((n_edgelets, 4))
+    np.add.at(V, medg[live], np.einsum("ksa,ksb->kab", B[live], B[live]))
+    np.add.at(eb, medg[live], np.einsum("ksa,ks->ka", B[live], r[live]))
+    W = np.zeros((len(err), 6, 4))
+    W[free] = np.einsum("ksa,ksb->kab", A[free], B[free])
+    return U, ea, V, eb, W, live
+
+
+def ba_edgelet_schur_ref(V, eb, W, live, lam, mrow, medg, n_free):
+    """The edgelets' −W V*⁻¹ Wᵀ (6N × 6N), −W V*⁻¹ ε_b and V*⁻¹, V* = V with its diagonal × (1 + λ)."""
+    n = len(V)
+    Vstar = V.copy()
+    Vstar[:, np.arange(4), np.arange(4)] *= 1.0 + lam
+    Vinv = np.zeros_like(V)
+    for e in range(n):
+        if np.all(np.linalg.eigvalsh(Vstar[e]) > 0):
+            Vinv[e] = np.linalg.inv(Vstar[e])
+    Wbig = np.zeros((6 * n_free, 4 * n))
+    for k in np.flatnonzero(live & (mrow >= 0)):
+        Wbig[6 * mrow[k] : 6 * mrow[k] + 6, 4 * medg[k] : 4 * medg[k] + 4] += W[k]
+    Vbig = np.zeros((4 * n, 4 * n))
+    for e in range(n):
+        Vbig[4 * e : 4 * e + 4, 4 * e : 4 * e + 4] = Vinv[e]
+    return -Wbig @ Vbig @ Wbig.T, -Wbig @ Vbig @ eb.ravel(), Vinv
+
+
+def ba_edgelet_backsub_ref(Vinv, eb, W, live, mrow, medg, dcam):
+    v = eb.copy()
+    k = np.flatnonzero(live & (mrow >= 0))
+    np.add.at(v, medg[k], -np.einsum("kab,ka->kb", W[k], dcam.reshape(-1, 6)[mrow[k]]))
+    return np.einsum("eab,eb->ea", Vinv, v)
