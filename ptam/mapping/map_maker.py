@@ -67,11 +67,8 @@ class MapMaker:
         self.map = map_ if map_ is not None else Map()
         self.queue: deque[KeyframeRequest] = deque()
         self.snapshot: MapSnapshot | None = None
-        # Keyframes handed over (written by the tracker's thread only) and integrated into the published
-        # snapshot (written by the mapper's thread only): no lock needed to tell whether one is still pending.
-        self._handed_over = 0
-        self._integrated = 0
-        self._published_integrated = 0
+        # Keyframes handed over (tracker's thread) and integrated, in the published snapshot (mapper's thread).
+        self._handed_over = self._integrated = self._published_integrated = 0
         self._plane_corners: dict[tuple[int, int], np.ndarray] = {}
         self._never_retry: dict[int, np.ndarray] = {}  # keyframe -> bool per point: do not search again
         self._failure_queue: list[tuple[int, int]] = []
@@ -122,7 +119,7 @@ class MapMaker:
         return self._handed_over == self._published_integrated and self.recent_converged
 
     def publish(self) -> None:
-        integrated = self._integrated
+        integrated = self._integrated  # read first: one integrated while the snapshot is taken stays pending
         self.snapshot = self.map.snapshot()
         self._published_integrated = integrated
 
