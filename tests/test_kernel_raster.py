@@ -118,6 +118,23 @@ def test_polyline_kernel_matches_reference():
     assert not cov.any()  # cleared for the next frame
 
 
+def test_blending_into_one_grey_channel_equals_each_channel_of_bgr():
+    rng = np.random.default_rng(3)
+    H, W = 60, 80
+    uv = rng.uniform(-5, 85, (4, 12, 2))
+    ok = np.ones((4, 12), bool)
+    grey = rng.integers(0, 256, (H, W, 1), dtype=np.uint8)
+    bgr = np.repeat(grey, 3, axis=2)
+    cov = np.zeros((H, W), np.float32)
+    touched = np.empty(H * W, np.int64)
+    for img in (grey, bgr):
+        n = rasterise_polylines(cov, touched, uv, ok, 1.0)
+        blend_coverage(img, cov, touched, n, np.array([255.0, 255.0, 255.0]), 0.7)
+    assert n > 300
+    for c in range(3):
+        assert np.array_equal(bgr[..., c], grey[..., 0])
+
+
 def test_sphere_silhouette_lands_on_the_projected_tangent_circle(rays):
     """The ray-cast outline of spheres follows the lens model: the tangent circle (where the camera's cone
     touches the sphere), projected with ``FovCamera.project``, is the boundary of the drawn mask: the pixel

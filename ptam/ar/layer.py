@@ -28,6 +28,7 @@ from collections import deque
 from pathlib import Path
 from typing import Protocol
 
+import cv2
 import numpy as np
 
 from ..errors import InputError, PtamError
@@ -51,13 +52,15 @@ class ArView(Protocol):
         needs drawn (no video is written)."""
 
     def show(self, index: int, timestamp: float, bgr: np.ndarray) -> None:
-        """Frame ``index`` as drawn: a new BGR uint8 image, the view's to keep."""
+        """Frame ``index`` as drawn: a new uint8 image, the view's to keep: BGR (H, W, 3), or grey (H, W) when the
+        frame and its overlay are grey (``OverlayRenderer.render``'s ``grey_ok``)."""
 
 
 class ArLayer:
     """Observer ``f(outcome, system)``; ``close()`` (or a ``with`` block) flushes the buffer and the video.
 
-    ``latest``: (frame index, timestamp, BGR image) of the newest augmented frame; ``listeners``: the views
+    ``latest``: (frame index, timestamp, image) of the newest augmented frame (BGR, or grey as in
+    :meth:`ArView.show`); ``listeners``: the views
     (:class:`ArView`) shown every drawn frame; ``undrawn``: frames advanced but not drawn, as no view wanted
     them; ``fire()`` and ``set_scene(name)``: key presses, called from any thread and applied by the worker
     before its next frame (the scene is only ever touched in the worker's thread).
@@ -183,11 +186,11 @@ class ArLayer:
             self.undrawn += 1
             return
         t0 = time.perf_counter()
-        bgr = self.augmenter.draw(image, step)
+        bgr = self.augmenter.draw(image, step, grey_ok=True)
         self.render_ms.append(1e3 * (time.perf_counter() - t0))
         self.frames_rendered += 1
         if self.writer is not None:
-            self.writer.write(bgr)
+            self.writer.write(bgr if bgr.ndim == 3 else cv2.cvtColor(bgr, cv2.COLOR_GRAY2BGR))
             self.frames_written += 1
         self.latest = (index, timestamp, bgr)
         for view in views:

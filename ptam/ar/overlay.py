@@ -44,6 +44,12 @@ def camera_ray_table(camera) -> np.ndarray:
     return ray_table(camera.unproject(np.stack([u, v], axis=-1).reshape(-1, 2)).reshape(H, W, 2))
 
 
+def grey_overlay(dl: DrawList) -> bool:
+    """Whether ``dl`` draws only grey (B = G = R) over a grey frame: the grid (white) and nothing else."""
+    grid = materials.GRID
+    return not (len(dl.spheres) or len(dl.decals) or dl.crosshair or dl.text) and grid[0] == grid[1] == grid[2]
+
+
 def _orthonormal_to(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Two unit vectors (N, 3) spanning the plane perpendicular to unit vectors d (N, 3)."""
     a = np.where(np.abs(d[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
@@ -74,14 +80,19 @@ class OverlayRenderer:
         self._circle = np.stack([np.cos(phi), np.sin(phi)], axis=1)
 
     # -- per frame -------------------------------------------------------------------------------------------
-    def render(self, image: np.ndarray, T_cp: np.ndarray, dl: DrawList) -> np.ndarray:
-        """The frame (grey (H, W) or BGR (H, W, 3) uint8) with the overlay, as a new BGR uint8 image."""
-        img = cv2.cvtColor(image, cv2.COLOR_GRAY2BGR) if image.ndim == 2 else image.copy()
+    def render(self, image: np.ndarray, T_cp: np.ndarray, dl: DrawList, grey_ok: bool = False) -> np.ndarray:
+        """The frame (grey (H, W) or BGR (H, W, 3) uint8) with the overlay, as a new BGR uint8 image.
+
+        ``grey_ok``: a grey frame whose overlay is grey too (:func:`grey_overlay`: the white grid alone) is drawn
+        in its one channel and returned grey (H, W): the same pixels as each channel of the BGR image, at a third
+        of the blending and, for a JPEG, about two thirds of the encoding."""
+        grey = grey_ok and image.ndim == 2 and grey_overlay(dl)
+        img = image.copy() if grey or image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
         if len(dl.spheres) or len(dl.decals):  # only they read the z-buffer; clearing it writes 8 bytes a pixel
             self.zbuf.fill(np.inf)
         self.last_grid = None
         if dl.grid_alpha > 0.0:
-            self._draw_grid(img, T_cp, min(dl.grid_alpha, 1.0))
+            self._draw_grid(img[..., None] if grey else img, T_cp, min(dl.grid_alpha, 1.0))
         R, t = T_cp[:3, :3], T_cp[:3, 3]
         if len(dl.spheres):
             self._draw_spheres(img, R, t, dl.spheres)

@@ -254,12 +254,13 @@ def rasterise_polylines(cov, touched, uv, ok, half_width):
 
 @njit(nogil=True, cache=True)
 def blend_coverage(img, cov, touched, n, colour, alpha):
-    """Blend ``colour`` at ``alpha`` × coverage into the touched pixels and clear their coverage."""
+    """Blend ``colour`` at ``alpha`` × coverage into the touched pixels of ``img`` (H, W, C) (C = 3: BGR; C = 1:
+    grey, with ``colour[0]``) and clear their coverage."""
     W = cov.shape[1]
     for i in range(n):
         y = touched[i] // W
         x = touched[i] - y * W
         a = alpha * np.float64(cov[y, x])
         cov[y, x] = 0.0
-        for c in range(3):
+        for c in range(img.shape[2]):
             img[y, x, c] = np.uint8(np.float64(img[y, x, c]) * (1.0 - a) + colour[c] * a + 0.5)
