@@ -118,6 +118,20 @@ def test_polyline_kernel_matches_reference():
     assert not cov.any()  # cleared for the next frame
 
 
+def test_a_full_touched_buffer_keeps_its_first_pixels_and_the_coverage_stays_exact():
+    rng = np.random.default_rng(4)
+    H, W = 60, 80
+    uv = rng.uniform(-5, 85, (3, 10, 2))
+    ok = np.ones((3, 10), bool)
+    cov, small = np.zeros((H, W), np.float32), np.zeros((H, W), np.float32)
+    touched, few = np.empty(H * W + 1, np.int64), np.full(11, -1, np.int64)  # capacity 10 + the scratch slot
+    n = rasterise_polylines(cov, touched, uv, ok, 1.0)
+    m = rasterise_polylines(small, few, uv, ok, 1.0)
+    assert n > 100 and m == 10
+    assert np.array_equal(few[:m], touched[:m]) and np.array_equal(small, cov)
+    assert np.array_equal(cov, rasterise_polylines_ref((H, W), uv, ok, 1.0).astype(np.float32))
+
+
 def test_blending_into_one_grey_channel_equals_each_channel_of_bgr():
     rng = np.random.default_rng(3)
     H, W = 60, 80

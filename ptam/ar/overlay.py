@@ -67,7 +67,7 @@ class OverlayRenderer:
         self.rays = camera_ray_table(camera)
         self.zbuf = np.empty((self.height, self.width))
         self.coverage = np.zeros((self.height, self.width), np.float32)  # kept zero between frames
-        self.touched = np.empty(self.width * self.height, np.int64)
+        self.touched = np.empty(self.width * self.height + 1, np.int64)  # + rasterise_polylines' scratch slot
         self.grid = make_grid(ar_cfg.grid_half_cells, ar_cfg.grid_spacing, ar_cfg.grid_samples_per_cell)
         self.last_grid = None  # the ProjectedGrid of the latest frame (its exact vertex positions)
         light = np.asarray(ar_cfg.light_direction, np.float64)

@@ -196,37 +196,38 @@ def draw_decals(img, zbuf, rays, plane, decals, boxes):
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _rasterise_segment(cov, touched, n, x0, y0, x1, y1, reach):
-    H, W = cov.shape
-    cap = touched.shape[0]
+def _rasterise_segment(cov, touched, n, W, H, x0, y0, x1, y1, reach):
+    """One segment into the flat coverage buffer ``cov`` (H·W), walked along its major axis a (b the minor one;
+    pixel (a, b) is flat index a·sa + b·sb). Branch-free per pixel: every pixel of the band is written (its
+    coverage kept as the maximum, so pixels out of reach keep theirs) and its index stored at ``touched[n]``, which
+    only counts (n grows) for a pixel newly within reach; the last slot of ``touched`` is scratch, for a full
+    buffer."""
+    cap = touched.shape[0] - 1
     ex, ey = x1 - x0, y1 - y0
     ee = ex * ex + ey * ey
     inv_ee = 1.0 / ee if ee > 0.0 else 0.0
-    steep = abs(ey) > abs(ex)
-    a0, b0, a1, b1 = (y0, x0, y1, x1) if steep else (x0, y0, x1, y1)  # walk along the major axis a
+    if abs(ey) > abs(ex):  # steep: a = y, b = x
+        a0, b0, a1, b1, ea, eb, oa, ob, amax, bmax, sa, sb = y0, x0, y1, x1, ey, ex, y0, x0, H, W, W, 1
+    else:
+        a0, b0, a1, b1, ea, eb, oa, ob, amax, bmax, sa, sb = x0, y0, x1, y1, ex, ey, x0, y0, W, H, 1, W
     if a1 < a0:
         a0, b0, a1, b1 = a1, b1, a0, b0
-    amax = H if steep else W
-    bmax = W if steep else H
     slope = (b1 - b0) / (a1 - a0) if a1 > a0 else 0.0
     band = reach * math.sqrt(1.0 + slope * slope) + 0.5
     r2 = reach * reach
     for a in range(max(int(math.floor(a0)), 0), min(int(math.ceil(a1)), amax - 1) + 1):
         bc = b0 + slope * (min(max(a, a0), a1) - a0)
+        pa = a - oa
         for b in range(max(int(math.ceil(bc - band)), 0), min(int(math.floor(bc + band)), bmax - 1) + 1):
-            x, y = (b, a) if steep else (a, b)
-            px, py = x - x0, y - y0
-            t = min(max((px * ex + py * ey) * inv_ee, 0.0), 1.0)
-            dx, dy = px - t * ex, py - t * ey
-            d2 = dx * dx + dy * dy
-            if d2 >= r2:
-                continue
-            c = min(reach - math.sqrt(d2), 1.0)
-            if cov[y, x] == 0.0 and n < cap:
-                touched[n] = y * W + x
-                n += 1
-            if c > cov[y, x]:
-                cov[y, x] = c
+            pb = b - ob
+            t = min(max((pa * ea + pb * eb) * inv_ee, 0.0), 1.0)
+            da, db = pa - t * ea, pb - t * eb
+            d2 = da * da + db * db
+            i = a * sa + b * sb
+            old = cov[i]
+            touched[min(n, cap)] = i
+            n = min(n + ((old == 0.0) & (d2 < r2)), cap)
+            cov[i] = max(old, np.float32(min(reach - math.sqrt(d2), 1.0)))
     return n
 
 
@@ -234,20 +235,22 @@ def _rasterise_segment(cov, touched, n, x0, y0, x1, y1, reach):
 def rasterise_polylines(cov, touched, uv, ok, half_width):
     """Coverage of polylines (L, S, 2) (pixel positions; segment s → s+1 of a line is drawn when ``ok`` holds
     at both ends) of half-width ``half_width`` into ``cov`` (H, W) float32 (zero on entry except where already
-    drawn), as the maximum over segments; appends each newly covered pixel's flat index to ``touched``
-    (capacity-bounded) and returns how many it holds.
+    drawn), as the maximum over segments; appends each newly covered pixel's flat index to ``touched`` (its last
+    slot is scratch: capacity ``len(touched) - 1``) and returns how many it holds.
 
     Each segment is walked along its major axis between its end points only (consecutive segments share end
     points, so a line is continuous; its two ends are cut square), over the band of the minor axis that can lie
     within w + 1/2 of it.
     """
+    H, W = cov.shape
+    flat = cov.reshape(-1)
     n = 0
     reach = half_width + 0.5
     for i in range(uv.shape[0]):
         for s in range(uv.shape[1] - 1):
             if ok[i, s] and ok[i, s + 1]:
                 n = _rasterise_segment(
-                    cov, touched, n, uv[i, s, 0], uv[i, s, 1], uv[i, s + 1, 0], uv[i, s + 1, 1], reach
+                    flat, touched, n, W, H, uv[i, s, 0], uv[i, s, 1], uv[i, s + 1, 0], uv[i, s + 1, 1], reach
                 )
     return n
 
