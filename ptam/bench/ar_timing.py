@@ -57,6 +57,32 @@ def _tracked_frames(cfg, seq: Path, frames: int):
     return camera, kept, snapshot
 
 
+def _scene_row(cfg, camera, name: str, kept) -> tuple[dict, np.ndarray]:
+    """Scene ``name`` drawn over every kept frame as the AR worker draws it: ms per frame (wall and thread CPU)
+    and the CPU time of its JPEG for the viewer; and the last frame drawn."""
+    aug = Augmenter(camera, cfg, name)
+    aug.augment(*kept[0][:2], kept[0][2] - 1.0, grey_ok=True)  # compile / warm caches
+    ms, cpu, jpeg = [], [], []
+    for image, T_cw, t in kept:
+        t0, c0 = time.perf_counter(), time.thread_time()
+        last = aug.augment(image, T_cw, t, grey_ok=True)
+        ms.append(1e3 * (time.perf_counter() - t0))
+        c1 = time.thread_time()
+        cpu.append(1e3 * (c1 - c0))
+        cv2.imencode(".jpg", last, [cv2.IMWRITE_JPEG_QUALITY, cfg.viewer.jpeg_quality])
+        jpeg.append(1e3 * (time.thread_time() - c1))
+    ms = np.array(ms)
+    row = dict(
+        mean=float(ms.mean()),
+        median=float(np.median(ms)),
+        p95=float(np.percentile(ms, 95)),
+        max=float(ms.max()),
+        cpu_mean=float(np.mean(cpu)),
+        jpeg_cpu_mean=float(np.mean(jpeg)),
+    )
+    return row, last
+
+
 def run_ar_benchmark(cfg, scene: str = "two_wall", out=print, frames: int = 200) -> dict:
     """Render every AR scene over the tracked frames; print ms per frame and the summary line; return them."""
     if frames < 2:
@@ -77,26 +103,7 @@ def run_ar_benchmark(cfg, scene: str = "two_wall", out=print, frames: int = 200)
     rows = {}
     last = None
     for name in (s for s in SCENES if s != ArScene.OFF):
-        aug = Augmenter(camera, cfg, name)
-        aug.augment(*kept[0][:2], kept[0][2] - 1.0, grey_ok=True)  # compile / warm caches
-        ms, cpu, jpeg = [], [], []
-        for image, T_cw, t in kept:
-            t0, c0 = time.perf_counter(), time.thread_time()
-            last = aug.augment(image, T_cw, t, grey_ok=True)
-            ms.append(1e3 * (time.perf_counter() - t0))
-            c1 = time.thread_time()
-            cpu.append(1e3 * (c1 - c0))
-            cv2.imencode(".jpg", last, [cv2.IMWRITE_JPEG_QUALITY, cfg.viewer.jpeg_quality])
-            jpeg.append(1e3 * (time.thread_time() - c1))
-        ms = np.array(ms)
-        rows[name] = dict(
-            mean=float(ms.mean()),
-            median=float(np.median(ms)),
-            p95=float(np.percentile(ms, 95)),
-            max=float(ms.max()),
-            cpu_mean=float(np.mean(cpu)),
-            jpeg_cpu_mean=float(np.mean(jpeg)),
-        )
+        rows[name], last = _scene_row(cfg, camera, name, kept)
         r = rows[name]
         out(
             f"{name:<10}{r['mean']:>11.2f}{r['median']:>13.2f}{r['p95']:>10.2f}{r['max']:>10.2f}{r['cpu_mean']:>15.2f}"
