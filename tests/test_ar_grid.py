@@ -161,7 +161,7 @@ def test_drawn_grid_vertices_within_half_a_pixel_of_the_truth(scene, rendered):
 
 def test_a_grey_frame_with_the_grid_alone_is_drawn_grey_with_the_same_pixels(scene):
     """``grey_ok``: the white grid over a grey frame is drawn in one channel, equal to each channel of the BGR
-    drawing; anything coloured (the game) is drawn in BGR as without it."""
+    drawing; anything coloured (the game) is drawn in BGR as without it (its grid still drawn grey first)."""
     rng = np.random.default_rng(5)
     frame = rng.integers(0, 256, (scene.camera.height, scene.camera.width), dtype=np.uint8)
     cfg = load_config().replace(**{"ar.grid_spacing": SPACING_M, "ar.grid_half_cells": HALF_CELLS})
@@ -179,3 +179,4 @@ def test_a_grey_frame_with_the_grid_alone_is_drawn_grey_with_the_same_pixels(sce
                     assert np.array_equal(bgr[..., c], grey)
             else:
                 assert np.array_equal(bgr, grey)
+            assert np.isinf(grey_aug.renderer.zbuf).all()  # emptied where the spheres wrote it, for the next frame

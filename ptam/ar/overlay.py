@@ -44,10 +44,13 @@ def camera_ray_table(camera) -> np.ndarray:
     return ray_table(camera.unproject(np.stack([u, v], axis=-1).reshape(-1, 2)).reshape(H, W, 2))
 
 
+def _grey(colour) -> bool:
+    return colour[0] == colour[1] == colour[2]
+
+
 def grey_overlay(dl: DrawList) -> bool:
     """Whether ``dl`` draws only grey (B = G = R) over a grey frame: the grid (white) and nothing else."""
-    grid = materials.GRID
-    return not (len(dl.spheres) or len(dl.decals) or dl.crosshair or dl.text) and grid[0] == grid[1] == grid[2]
+    return not (len(dl.spheres) or len(dl.decals) or dl.crosshair or dl.text) and _grey(materials.GRID)
 
 
 def _orthonormal_to(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -65,7 +68,7 @@ class OverlayRenderer:
         self.cam_params = camera.kernel_params()
         self.width, self.height = camera.size
         self.rays = camera_ray_table(camera)
-        self.zbuf = np.empty((self.height, self.width))
+        self.zbuf = np.full((self.height, self.width), np.inf)  # kept empty between frames
         self.coverage = np.zeros((self.height, self.width), np.float32)  # kept zero between frames
         self.touched = np.empty(self.width * self.height + 1, np.int64)  # + rasterise_polylines' scratch slot
         self.grid = make_grid(ar_cfg.grid_half_cells, ar_cfg.grid_spacing, ar_cfg.grid_samples_per_cell)
@@ -85,19 +88,23 @@ class OverlayRenderer:
 
         ``grey_ok``: a grey frame whose overlay is grey too (:func:`grey_overlay`: the white grid alone) is drawn
         in its one channel and returned grey (H, W): the same pixels as each channel of the BGR image, at a third
-        of the blending and, for a JPEG, about two thirds of the encoding."""
-        grey = grey_ok and image.ndim == 2 and grey_overlay(dl)
+        of the blending and, for a JPEG, about two thirds of the encoding. The grid, drawn first, always goes into
+        a grey frame's one channel; the frame becomes BGR after it, for what is coloured."""
+        grey = image.ndim == 2 and _grey(materials.GRID)
         img = image.copy() if grey or image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
-        if len(dl.spheres) or len(dl.decals):  # only they read the z-buffer; clearing it writes 8 bytes a pixel
-            self.zbuf.fill(np.inf)
         self.last_grid = None
         if dl.grid_alpha > 0.0:
-            self._draw_grid(img[..., None] if grey else img, T_cp, min(dl.grid_alpha, 1.0))
+            self._draw_grid(img[..., None] if img.ndim == 2 else img, T_cp, min(dl.grid_alpha, 1.0))
+        if img.ndim == 2 and not (grey_ok and grey_overlay(dl)):
+            img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
         R, t = T_cp[:3, :3], T_cp[:3, 3]
-        if len(dl.spheres):
-            self._draw_spheres(img, R, t, dl.spheres)
-        if len(dl.decals):
-            self._draw_decals(img, R, t, dl.decals)
+        boxes = self._draw_spheres(img, R, t, dl.spheres) if len(dl.spheres) else None
+        try:
+            if len(dl.decals):
+                self._draw_decals(img, R, t, dl.decals)
+        finally:
+            for x0, y0, x1, y1 in () if boxes is None else boxes:  # the z-buffer is empty between frames
+                self.zbuf[y0:y1, x0:x1] = np.inf
         self._draw_hud(img, dl)
         return img
 
@@ -134,7 +141,8 @@ class OverlayRenderer:
         boxes[~visible] = 0
         return boxes
 
-    def _draw_spheres(self, img, R, t, rec_p: np.ndarray) -> None:
+    def _draw_spheres(self, img, R, t, rec_p: np.ndarray) -> np.ndarray:
+        """Draw the spheres (plane-frame records) and return the pixel boxes whose z-buffer they wrote."""
         rec = rec_p.copy()
         c = rec_p[:, 0:3] @ R.T + t
         rec[:, 0:3] = c
@@ -149,7 +157,7 @@ class OverlayRenderer:
             shrink = 1.0 - (r / dist) ** 2
         visible = outside & (off_axis - half_angle < self.max_angle)
         if not visible.any():
-            return
+            return np.zeros((0, 4), np.int64)
         # The silhouette is the circle where the tangent cone from the camera touches the sphere.
         e1, e2 = _orthonormal_to(np.where(visible[:, None], dirs, [[0.0, 0.0, 1.0]]))
         centre = c * np.where(visible, shrink, 0.0)[:, None]
@@ -160,15 +168,11 @@ class OverlayRenderer:
         boxes = self._boxes(outline, visible)
         order = np.argsort(-np.where(visible, dist, -np.inf))  # back to front: rims blend over what is behind
         order = order[visible[order]]
+        boxes = np.ascontiguousarray(boxes[order])
         draw_spheres(
-            img,
-            self.zbuf,
-            self.rays,
-            np.ascontiguousarray(rec[order]),
-            np.ascontiguousarray(boxes[order]),
-            R @ self.light_plane,
-            self.shading,
+            img, self.zbuf, self.rays, np.ascontiguousarray(rec[order]), boxes, R @ self.light_plane, self.shading
         )
+        return boxes
 
     def _draw_decals(self, img, R, t, dec: np.ndarray) -> None:
         plane = np.concatenate([t, R[:, 0], R[:, 1], R[:, 2]])
