@@ -87,6 +87,7 @@ class ArLayer:
         self.dropped = 0
         self.undrawn = 0
         self.render_ms: list[float] = []
+        self.cpu_s = 0.0  # the worker's CPU time on frames: scene, drawing, video and views (its cost to the cores)
         self._pending: deque = deque(maxlen=max(int(cfg.ar.init_buffer_frames), 0))
         self._items: deque = deque()
         self._cond = threading.Condition()
@@ -179,6 +180,13 @@ class ArLayer:
                 self._cond.notify_all()
 
     def _frame(self, image: np.ndarray, T_cw: np.ndarray, index: int, timestamp: float, snapshot) -> None:
+        c0 = time.thread_time()
+        try:
+            self._draw_frame(image, T_cw, index, timestamp, snapshot)
+        finally:
+            self.cpu_s += time.thread_time() - c0
+
+    def _draw_frame(self, image: np.ndarray, T_cw: np.ndarray, index: int, timestamp: float, snapshot) -> None:
         step = self.augmenter.advance(T_cw, timestamp, snapshot)
         views = self.listeners
         # Every view is asked (a list, not a short-circuiting generator): each one paces itself.

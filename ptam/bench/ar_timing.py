@@ -12,7 +12,9 @@ but are not rendering.
 Then what the AR view costs the tracker: the same frames tracked again (sync) without a viewer, then with a viewer
 recording to a temporary .rrd, once without AR and once per AR scene shown in it (the AR worker's frames logged as
 ``camera/augmented``, as in ``ptam run``: drawn at most ``viewer.ar_max_fps`` times a second); the tracker's median
-ms per frame for each, the augmented frames drawn, and the frames the viewer or the AR worker had no time for.
+ms per frame for each, the augmented frames drawn, the frames the viewer or the AR worker had no time for, and the
+AR worker's CPU time per tracked frame (what it takes from the cores the tracker and mapper share; unlike the
+tracker's median it hardly depends on what else the machine runs).
 """
 
 from __future__ import annotations
@@ -164,6 +166,7 @@ def _track_with_viewer(cfg, seq: Path, frames: int, viewer: bool, scene: str | N
         dropped=view.dropped if view is not None else 0,
         ar_drawn=layer.frames_rendered if layer is not None else 0,
         ar_dropped=(layer.dropped + view.ar_dropped) if layer is not None else 0,
+        ar_cpu_ms=1e3 * layer.cpu_s / max(len(ms), 1) if layer is not None else 0.0,
     )
 
 
@@ -176,7 +179,7 @@ def _viewer_rows(cfg, seq: Path, frames: int, out) -> dict:
     )
     out(
         f"{'viewer':<8}{'AR view':<9}{'median (ms)':>12}{'p95 (ms)':>10}{'frames not shown':>18}"
-        f"{'AR frames drawn':>17}{'AR frames not shown':>21}"
+        f"{'AR frames drawn':>17}{'AR frames not shown':>21}{'AR CPU (ms/frame)':>19}"
     )
     rows = {}
     scenes = [s for s in dict.fromkeys((cfg.ar.scene, ArScene.GAME)) if s != ArScene.OFF]
@@ -184,6 +187,6 @@ def _viewer_rows(cfg, seq: Path, frames: int, out) -> dict:
         r = rows[name] = _track_with_viewer(cfg, seq, frames, viewer, scene)
         out(
             f"{'rrd' if viewer else 'none':<8}{str(scene or ArScene.OFF):<9}{r['median']:>12.2f}{r['p95']:>10.2f}"
-            f"{r['dropped']:>18d}{r['ar_drawn']:>17d}{r['ar_dropped']:>21d}"
+            f"{r['dropped']:>18d}{r['ar_drawn']:>17d}{r['ar_dropped']:>21d}{r['ar_cpu_ms']:>19.2f}"
         )
     return rows
