@@ -16,11 +16,12 @@ from ptam.ar.raster_kernels import (
     blend_coverage,
     draw_decals,
     draw_spheres,
+    outline_boxes,
     rasterise_polylines,
 )
 from ptam.camera import FovCamera
 from ptam.geometry import so3
-from tests.reference.raster import draw_decals_ref, draw_spheres_ref, rasterise_polylines_ref
+from tests.reference.raster import draw_decals_ref, draw_spheres_ref, outline_boxes_ref, rasterise_polylines_ref
 
 CAM = FovCamera(640, 480, 384.0, 384.0, 319.5, 239.5, 0.9)  # PTAM's wide-angle lens (two_wall's camera)
 SHADING = np.array([0.5, 0.5, 1.0, 50.0])
@@ -215,3 +216,22 @@ def test_spheres_occlude_each_other_in_either_order(rays):
     rim = (cv2.dilate(near_mask, kernel) > 0) & ~(cv2.erode(near_mask, kernel) > 0)
     same = ~rim & np.isfinite(za)
     assert same.sum() > 10000 and np.array_equal(a[same], b[same])
+
+
+def test_outline_boxes_kernel_matches_reference():
+    """Outlines in front of the camera, beyond the projectable cone, reaching behind the camera, and invisible."""
+    rng = np.random.default_rng(6)
+    n, k = 40, 32
+    centres = np.column_stack([rng.uniform(-3, 3, (n, 2)), rng.uniform(-0.5, 3.0, n)])
+    phi = np.linspace(0.0, 2.0 * np.pi, k, endpoint=False)
+    radius = rng.uniform(0.05, 0.6, n)
+    samples = centres[:, None] + radius[:, None, None] * np.stack([np.cos(phi), np.sin(phi), 0.3 * np.cos(phi)], -1)
+    visible = rng.random(n) > 0.2
+    max_radius = 1.5 * CAM.max_radius * (1.0 - 1e-9)
+    boxes = outline_boxes(samples, visible, CAM.kernel_params(), max_radius, CAM.width, CAM.height, 2)
+    ref = outline_boxes_ref(samples, visible, CAM, max_radius, 2)
+    behind = (samples[..., 2] <= 0).any(axis=1) & visible
+    beyond = (np.hypot(samples[..., 0], samples[..., 1]) > max_radius * samples[..., 2]).any(axis=1) & ~behind
+    empty = (boxes[:, 2] <= boxes[:, 0]) | (boxes[:, 3] <= boxes[:, 1])
+    assert behind.sum() >= 3 and beyond.sum() >= 3 and (visible & ~behind & ~empty).sum() >= 10
+    assert np.array_equal(boxes, ref)

@@ -28,6 +28,7 @@ from .raster_kernels import (
     blend_coverage,
     draw_decals,
     draw_spheres,
+    outline_boxes,
     rasterise_polylines,
     ray_table,
 )
@@ -115,31 +116,16 @@ class OverlayRenderer:
         blend_coverage(img, self.coverage, self.touched, n, np.asarray(materials.GRID, np.float64), alpha)
 
     def _boxes(self, samples: np.ndarray, visible: np.ndarray) -> np.ndarray:
-        """Pixel boxes [x0, y0, x1, y1) (N, 4) bounding projected outline samples (N, K, 3), empty where not
-        ``visible``. Samples beyond the projectable cone are first pulled radially onto its edge, which lies
-        outside the image (radial lens models are monotonic inside it), so the box still covers every image
-        pixel of the object; an outline reaching behind the camera gets the whole image (the kernels test
-        every pixel exactly)."""
-        n, k, _ = samples.shape
-        z = samples[..., 2]
-        front = (z > 0.0).all(axis=1)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            xy = samples[..., :2] / z[..., None]
-            r = np.linalg.norm(xy, axis=-1, keepdims=True)
-            xy = xy * np.minimum(1.0, self.max_radius / r)
-        pts = np.concatenate([xy, np.ones((n, k, 1))], axis=-1)
-        pts[~front] = [0.0, 0.0, 1.0]
-        uv, _ = project_points(self.cam_params, np.ascontiguousarray(pts.reshape(-1, 3)))
-        uv = uv.reshape(n, k, 2)
-        m = materials.BOX_MARGIN_PX
-        boxes = np.zeros((n, 4), np.int64)
-        boxes[:, 2], boxes[:, 3] = self.width, self.height
-        boxes[front, 0:2] = np.floor(uv[front].min(axis=1)) - m
-        boxes[front, 2:4] = np.ceil(uv[front].max(axis=1)) + m + 1
-        boxes[:, [0, 2]] = np.clip(boxes[:, [0, 2]], 0, self.width)
-        boxes[:, [1, 3]] = np.clip(boxes[:, [1, 3]], 0, self.height)
-        boxes[~visible] = 0
-        return boxes
+        """Pixel boxes (N, 4) of projected outline samples (N, K, 3) (``raster_kernels.outline_boxes``)."""
+        return outline_boxes(
+            np.ascontiguousarray(samples),
+            visible,
+            self.cam_params,
+            self.max_radius,
+            self.width,
+            self.height,
+            materials.BOX_MARGIN_PX,
+        )
 
     def _draw_spheres(self, img, R, t, rec_p: np.ndarray) -> np.ndarray:
         """Draw the spheres (plane-frame records) and return the pixel boxes whose z-buffer they wrote."""

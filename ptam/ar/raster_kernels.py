@@ -35,6 +35,8 @@ import math
 import numpy as np
 from numba import njit
 
+from ..camera.camproj_kernels import project
+
 PLAIN, EYE, BALL = 0, 1, 2
 S_RADIUS, S_ROT, S_COLOURS, S_PATTERN, S_P0, S_P1, S_SPEC = 3, 4, 13, 22, 23, 24, 25  # centre at 0:3
 SPHERE_LEN = 26
@@ -267,3 +269,36 @@ def blend_coverage(img, cov, touched, n, colour, alpha):
         cov[y, x] = 0.0
         for c in range(img.shape[2]):
             img[y, x, c] = np.uint8(np.float64(img[y, x, c]) * (1.0 - a) + colour[c] * a + 0.5)
+
+
+@njit(nogil=True, cache=True)
+def outline_boxes(samples, visible, cam, max_radius, W, H, margin):
+    """Pixel boxes [x0, y0, x1, y1) (N, 4) int bounding projected outline samples (N, K, 3) (camera frame) through
+    the lens ``cam`` (``CameraModel.kernel_params()``), padded by ``margin`` px and clipped to the W×H image; empty
+    (zeros) where not ``visible``. Samples beyond the projectable cone (unit-plane radius ``max_radius``) are first
+    pulled radially onto its edge, which lies outside the image (radial lens models are monotonic inside it), so
+    the box still covers every image pixel of the object; an outline reaching behind the camera gets the whole
+    image (the raster kernels test every pixel exactly)."""
+    n, k = samples.shape[0], samples.shape[1]
+    boxes = np.zeros((n, 4), np.int64)
+    for i in range(n):
+        if not visible[i]:
+            continue
+        boxes[i, 2], boxes[i, 3] = W, H
+        front = True
+        for j in range(k):
+            front = front and samples[i, j, 2] > 0.0
+        if not front:
+            continue
+        u0, v0, u1, v1 = np.inf, np.inf, -np.inf, -np.inf
+        for j in range(k):
+            x, y = samples[i, j, 0] / samples[i, j, 2], samples[i, j, 1] / samples[i, j, 2]
+            r = math.sqrt(x * x + y * y)
+            scale = min(1.0, max_radius / r) if r > 0.0 else 1.0
+            u, v, _ = project(cam, x * scale, y * scale, 1.0)
+            u0, v0, u1, v1 = min(u0, u), min(v0, v), max(u1, u), max(v1, v)
+        boxes[i, 0] = min(max(int(math.floor(u0)) - margin, 0), W)
+        boxes[i, 1] = min(max(int(math.floor(v0)) - margin, 0), H)
+        boxes[i, 2] = min(max(int(math.ceil(u1)) + margin + 1, 0), W)
+        boxes[i, 3] = min(max(int(math.ceil(v1)) + margin + 1, 0), H)
+    return boxes
