@@ -259,16 +259,17 @@ def rasterise_polylines(cov, touched, uv, ok, half_width):
 
 @njit(nogil=True, cache=True)
 def blend_coverage(img, cov, touched, n, colour, alpha):
-    """Blend ``colour`` at ``alpha`` × coverage into the touched pixels of ``img`` (H, W, C) (C = 3: BGR; C = 1:
-    grey, with ``colour[0]``) and clear their coverage."""
-    W = cov.shape[1]
+    """Blend ``colour`` at ``alpha`` × coverage into the touched pixels of ``img`` (H, W, C) (C-contiguous; C = 3:
+    BGR; C = 1: grey, with ``colour[0]``) and clear their coverage. Pixels are addressed by their flat index."""
+    C = img.shape[2]
+    pixels = img.reshape(-1, C)
+    flat = cov.reshape(-1)
     for i in range(n):
-        y = touched[i] // W
-        x = touched[i] - y * W
-        a = alpha * np.float64(cov[y, x])
-        cov[y, x] = 0.0
-        for c in range(img.shape[2]):
-            img[y, x, c] = np.uint8(np.float64(img[y, x, c]) * (1.0 - a) + colour[c] * a + 0.5)
+        p = touched[i]
+        a = alpha * np.float64(flat[p])
+        flat[p] = 0.0
+        for c in range(C):
+            pixels[p, c] = np.uint8(np.float64(pixels[p, c]) * (1.0 - a) + colour[c] * a + 0.5)
 
 
 @njit(nogil=True, cache=True)
