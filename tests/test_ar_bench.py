@@ -13,3 +13,5 @@ def test_bench_ar_reports_every_scene_and_the_summary_line():
     assert set(result["scenes"]) == {"eyes", "game", "grid"} and result["frames"] >= 15
     assert result["ar_render_ms"] == max(r["mean"] for r in result["scenes"].values()) > 0
     assert all(v > 0 for v in result["encode_ms"].values())
+    viewer = result["viewer"]
+    assert viewer["off"]["ar_cpu_ms"] == 0.0 and viewer["grid"]["ar_drawn"] > 0 and viewer["grid"]["ar_cpu_ms"] > 0

@@ -157,3 +157,26 @@ def test_drawn_grid_vertices_within_half_a_pixel_of_the_truth(scene, rendered):
     e, eb = np.concatenate(errs), np.concatenate(border_errs)
     assert len(e) >= 300 and len(eb) >= 40
     assert e.max() < 0.5 and eb.max() < 0.5
+
+
+def test_a_grey_frame_with_the_grid_alone_is_drawn_grey_with_the_same_pixels(scene):
+    """``grey_ok``: the white grid over a grey frame is drawn in one channel, equal to each channel of the BGR
+    drawing; anything coloured (the game) is drawn in BGR as without it (its grid still drawn grey first)."""
+    rng = np.random.default_rng(5)
+    frame = rng.integers(0, 256, (scene.camera.height, scene.camera.width), dtype=np.uint8)
+    cfg = load_config().replace(**{"ar.grid_spacing": SPACING_M, "ar.grid_half_cells": HALF_CELLS})
+    for name, grey_shape in (("grid", frame.shape), ("game", (*frame.shape, 3))):
+        bgr_aug, grey_aug = Augmenter(scene.camera, cfg, name, T_PW), Augmenter(scene.camera, cfg, name, T_PW)
+        for i in FRAMES:
+            T_cw = se3.inv(scene.poses_T_wc[i])
+            bgr = bgr_aug.augment(frame, T_cw, scene.timestamps[i])
+            grey = grey_aug.augment(frame, T_cw, scene.timestamps[i], grey_ok=True)
+            assert bgr.shape == (*frame.shape, 3) and grey.shape == grey_shape
+            drawn = np.count_nonzero(bgr[..., 0] != frame)
+            assert drawn > 5000  # the overlay is there
+            if name == "grid":
+                for c in range(3):
+                    assert np.array_equal(bgr[..., c], grey)
+            else:
+                assert np.array_equal(bgr, grey)
+            assert np.isinf(grey_aug.renderer.zbuf).all()  # emptied where the spheres wrote it, for the next frame

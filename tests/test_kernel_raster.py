@@ -16,11 +16,12 @@ from ptam.ar.raster_kernels import (
     blend_coverage,
     draw_decals,
     draw_spheres,
+    outline_boxes,
     rasterise_polylines,
 )
 from ptam.camera import FovCamera
 from ptam.geometry import so3
-from tests.reference.raster import draw_decals_ref, draw_spheres_ref, rasterise_polylines_ref
+from tests.reference.raster import draw_decals_ref, draw_spheres_ref, outline_boxes_ref, rasterise_polylines_ref
 
 CAM = FovCamera(640, 480, 384.0, 384.0, 319.5, 239.5, 0.9)  # PTAM's wide-angle lens (two_wall's camera)
 SHADING = np.array([0.5, 0.5, 1.0, 50.0])
@@ -118,6 +119,37 @@ def test_polyline_kernel_matches_reference():
     assert not cov.any()  # cleared for the next frame
 
 
+def test_a_full_touched_buffer_keeps_its_first_pixels_and_the_coverage_stays_exact():
+    rng = np.random.default_rng(4)
+    H, W = 60, 80
+    uv = rng.uniform(-5, 85, (3, 10, 2))
+    ok = np.ones((3, 10), bool)
+    cov, small = np.zeros((H, W), np.float32), np.zeros((H, W), np.float32)
+    touched, few = np.empty(H * W + 1, np.int64), np.full(11, -1, np.int64)  # capacity 10 + the scratch slot
+    n = rasterise_polylines(cov, touched, uv, ok, 1.0)
+    m = rasterise_polylines(small, few, uv, ok, 1.0)
+    assert n > 100 and m == 10
+    assert np.array_equal(few[:m], touched[:m]) and np.array_equal(small, cov)
+    assert np.array_equal(cov, rasterise_polylines_ref((H, W), uv, ok, 1.0).astype(np.float32))
+
+
+def test_blending_into_one_grey_channel_equals_each_channel_of_bgr():
+    rng = np.random.default_rng(3)
+    H, W = 60, 80
+    uv = rng.uniform(-5, 85, (4, 12, 2))
+    ok = np.ones((4, 12), bool)
+    grey = rng.integers(0, 256, (H, W, 1), dtype=np.uint8)
+    bgr = np.repeat(grey, 3, axis=2)
+    cov = np.zeros((H, W), np.float32)
+    touched = np.empty(H * W, np.int64)
+    for img in (grey, bgr):
+        n = rasterise_polylines(cov, touched, uv, ok, 1.0)
+        blend_coverage(img, cov, touched, n, np.array([255.0, 255.0, 255.0]), 0.7)
+    assert n > 300
+    for c in range(3):
+        assert np.array_equal(bgr[..., c], grey[..., 0])
+
+
 def test_sphere_silhouette_lands_on_the_projected_tangent_circle(rays):
     """The ray-cast outline of spheres follows the lens model: the tangent circle (where the camera's cone
     touches the sphere), projected with ``FovCamera.project``, is the boundary of the drawn mask: the pixel
@@ -184,3 +216,22 @@ def test_spheres_occlude_each_other_in_either_order(rays):
     rim = (cv2.dilate(near_mask, kernel) > 0) & ~(cv2.erode(near_mask, kernel) > 0)
     same = ~rim & np.isfinite(za)
     assert same.sum() > 10000 and np.array_equal(a[same], b[same])
+
+
+def test_outline_boxes_kernel_matches_reference():
+    """Outlines in front of the camera, beyond the projectable cone, reaching behind the camera, and invisible."""
+    rng = np.random.default_rng(6)
+    n, k = 40, 32
+    centres = np.column_stack([rng.uniform(-3, 3, (n, 2)), rng.uniform(-0.5, 3.0, n)])
+    phi = np.linspace(0.0, 2.0 * np.pi, k, endpoint=False)
+    radius = rng.uniform(0.05, 0.6, n)
+    samples = centres[:, None] + radius[:, None, None] * np.stack([np.cos(phi), np.sin(phi), 0.3 * np.cos(phi)], -1)
+    visible = rng.random(n) > 0.2
+    max_radius = 1.5 * CAM.max_radius * (1.0 - 1e-9)
+    boxes = outline_boxes(samples, visible, CAM.kernel_params(), max_radius, CAM.width, CAM.height, 2)
+    ref = outline_boxes_ref(samples, visible, CAM, max_radius, 2)
+    behind = (samples[..., 2] <= 0).any(axis=1) & visible
+    beyond = (np.hypot(samples[..., 0], samples[..., 1]) > max_radius * samples[..., 2]).any(axis=1) & ~behind
+    empty = (boxes[:, 2] <= boxes[:, 0]) | (boxes[:, 3] <= boxes[:, 1])
+    assert behind.sum() >= 3 and beyond.sum() >= 3 and (visible & ~behind & ~empty).sum() >= 10
+    assert np.array_equal(boxes, ref)

@@ -133,6 +133,19 @@ def test_a_lossless_view_logs_the_exact_pixels():
     assert np.array_equal(image.buffer.as_arrow_array()[0].values.to_numpy(), bgr.reshape(-1))
 
 
+def test_a_grey_frame_is_logged_as_a_grey_jpeg_or_as_its_exact_bgr_pixels():
+    grey = np.zeros((48, 64), np.uint8)
+    grey[10:20, 10:40] = 200
+    out = queue.Queue()
+    _view(out).show(0, 0.0, grey)
+    jpeg = out.get_nowait().image.blob.as_arrow_array()[0].values.to_numpy()
+    decoded = cv2.imdecode(jpeg, cv2.IMREAD_UNCHANGED)
+    assert decoded.shape == grey.shape and np.abs(decoded.astype(int) - grey).mean() < 3
+    _view(out, ar_image_lossless=True).show(1, 0.1, grey)
+    image = out.get_nowait().image
+    assert np.array_equal(image.buffer.as_arrow_array()[0].values.to_numpy(), np.repeat(grey, 3).reshape(-1))
+
+
 @pytest.fixture(scope="module")
 def paced_run(tmp_path_factory):
     """``ptam run --rrd --ar grid`` without --ar-video on the first frames of two_wall_short, sync."""

@@ -46,10 +46,14 @@ class Augmenter:
         self._last_timestamp = float(timestamp)
         return ArStep(T_cp, self.scene.update(se3.inv(T_cp), dt))
 
-    def draw(self, image: np.ndarray, step: ArStep) -> np.ndarray:
-        """BGR uint8 frame: ``image`` with ``step`` drawn over it."""
-        return self.renderer.render(image, step.T_cp, step.drawlist)
+    def draw(self, image: np.ndarray, step: ArStep, grey_ok: bool = False) -> np.ndarray:
+        """BGR uint8 frame: ``image`` with ``step`` drawn over it; ``grey_ok``: grey (H, W) when the frame and the
+        overlay are both grey (``OverlayRenderer.render``)."""
+        return self.renderer.render(image, step.T_cp, step.drawlist, grey_ok)
 
-    def augment(self, image: np.ndarray, T_cw: np.ndarray, timestamp: float, snapshot=None) -> np.ndarray:
-        """BGR uint8 frame with the scene's next frame drawn for world→camera pose ``T_cw``."""
-        return self.draw(image, self.advance(T_cw, timestamp, snapshot))
+    def augment(
+        self, image: np.ndarray, T_cw: np.ndarray, timestamp: float, snapshot=None, grey_ok: bool = False
+    ) -> np.ndarray:
+        """BGR uint8 frame with the scene's next frame drawn for world→camera pose ``T_cw`` (``grey_ok``: as
+        :meth:`draw`)."""
+        return self.draw(image, self.advance(T_cw, timestamp, snapshot), grey_ok)

@@ -28,6 +28,7 @@ from collections import deque
 from pathlib import Path
 from typing import Protocol
 
+import cv2
 import numpy as np
 
 from ..errors import InputError, PtamError
@@ -51,13 +52,15 @@ class ArView(Protocol):
         needs drawn (no video is written)."""
 
     def show(self, index: int, timestamp: float, bgr: np.ndarray) -> None:
-        """Frame ``index`` as drawn: a new BGR uint8 image, the view's to keep."""
+        """Frame ``index`` as drawn: a new uint8 image, the view's to keep: BGR (H, W, 3), or grey (H, W) when the
+        frame and its overlay are grey (``OverlayRenderer.render``'s ``grey_ok``)."""
 
 
 class ArLayer:
     """Observer ``f(outcome, system)``; ``close()`` (or a ``with`` block) flushes the buffer and the video.
 
-    ``latest``: (frame index, timestamp, BGR image) of the newest augmented frame; ``listeners``: the views
+    ``latest``: (frame index, timestamp, image) of the newest augmented frame (BGR, or grey as in
+    :meth:`ArView.show`); ``listeners``: the views
     (:class:`ArView`) shown every drawn frame; ``undrawn``: frames advanced but not drawn, as no view wanted
     them; ``fire()`` and ``set_scene(name)``: key presses, called from any thread and applied by the worker
     before its next frame (the scene is only ever touched in the worker's thread).
@@ -84,6 +87,7 @@ class ArLayer:
         self.dropped = 0
         self.undrawn = 0
         self.render_ms: list[float] = []
+        self.cpu_s = 0.0  # the worker's CPU time on frames: scene, drawing, video and views (its cost to the cores)
         self._pending: deque = deque(maxlen=max(int(cfg.ar.init_buffer_frames), 0))
         self._items: deque = deque()
         self._cond = threading.Condition()
@@ -176,6 +180,13 @@ class ArLayer:
                 self._cond.notify_all()
 
     def _frame(self, image: np.ndarray, T_cw: np.ndarray, index: int, timestamp: float, snapshot) -> None:
+        c0 = time.thread_time()
+        try:
+            self._draw_frame(image, T_cw, index, timestamp, snapshot)
+        finally:
+            self.cpu_s += time.thread_time() - c0
+
+    def _draw_frame(self, image: np.ndarray, T_cw: np.ndarray, index: int, timestamp: float, snapshot) -> None:
         step = self.augmenter.advance(T_cw, timestamp, snapshot)
         views = self.listeners
         # Every view is asked (a list, not a short-circuiting generator): each one paces itself.
@@ -183,11 +194,11 @@ class ArLayer:
             self.undrawn += 1
             return
         t0 = time.perf_counter()
-        bgr = self.augmenter.draw(image, step)
+        bgr = self.augmenter.draw(image, step, grey_ok=True)
         self.render_ms.append(1e3 * (time.perf_counter() - t0))
         self.frames_rendered += 1
         if self.writer is not None:
-            self.writer.write(bgr)
+            self.writer.write(bgr if bgr.ndim == 3 else cv2.cvtColor(bgr, cv2.COLOR_GRAY2BGR))
             self.frames_written += 1
         self.latest = (index, timestamp, bgr)
         for view in views:

@@ -28,6 +28,7 @@ from .raster_kernels import (
     blend_coverage,
     draw_decals,
     draw_spheres,
+    outline_boxes,
     rasterise_polylines,
     ray_table,
 )
@@ -42,6 +43,15 @@ def camera_ray_table(camera) -> np.ndarray:
     W, H = camera.size
     u, v = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
     return ray_table(camera.unproject(np.stack([u, v], axis=-1).reshape(-1, 2)).reshape(H, W, 2))
+
+
+def _grey(colour) -> bool:
+    return colour[0] == colour[1] == colour[2]
+
+
+def grey_overlay(dl: DrawList) -> bool:
+    """Whether ``dl`` draws only grey (B = G = R) over a grey frame: the grid (white) and nothing else."""
+    return not (len(dl.spheres) or len(dl.decals) or dl.crosshair or dl.text) and _grey(materials.GRID)
 
 
 def _orthonormal_to(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -59,9 +69,9 @@ class OverlayRenderer:
         self.cam_params = camera.kernel_params()
         self.width, self.height = camera.size
         self.rays = camera_ray_table(camera)
-        self.zbuf = np.empty((self.height, self.width))
+        self.zbuf = np.full((self.height, self.width), np.inf)  # kept empty between frames
         self.coverage = np.zeros((self.height, self.width), np.float32)  # kept zero between frames
-        self.touched = np.empty(self.width * self.height, np.int64)
+        self.touched = np.empty(self.width * self.height + 1, np.int64)  # + rasterise_polylines' scratch slot
         self.grid = make_grid(ar_cfg.grid_half_cells, ar_cfg.grid_spacing, ar_cfg.grid_samples_per_cell)
         self.last_grid = None  # the ProjectedGrid of the latest frame (its exact vertex positions)
         light = np.asarray(ar_cfg.light_direction, np.float64)
@@ -74,19 +84,28 @@ class OverlayRenderer:
         self._circle = np.stack([np.cos(phi), np.sin(phi)], axis=1)
 
     # -- per frame -------------------------------------------------------------------------------------------
-    def render(self, image: np.ndarray, T_cp: np.ndarray, dl: DrawList) -> np.ndarray:
-        """The frame (grey (H, W) or BGR (H, W, 3) uint8) with the overlay, as a new BGR uint8 image."""
-        img = cv2.cvtColor(image, cv2.COLOR_GRAY2BGR) if image.ndim == 2 else image.copy()
-        if len(dl.spheres) or len(dl.decals):  # only they read the z-buffer; clearing it writes 8 bytes a pixel
-            self.zbuf.fill(np.inf)
+    def render(self, image: np.ndarray, T_cp: np.ndarray, dl: DrawList, grey_ok: bool = False) -> np.ndarray:
+        """The frame (grey (H, W) or BGR (H, W, 3) uint8) with the overlay, as a new BGR uint8 image.
+
+        ``grey_ok``: a grey frame whose overlay is grey too (:func:`grey_overlay`: the white grid alone) is drawn
+        in its one channel and returned grey (H, W): the same pixels as each channel of the BGR image, at a third
+        of the blending and, for a JPEG, about two thirds of the encoding. The grid, drawn first, always goes into
+        a grey frame's one channel; the frame becomes BGR after it, for what is coloured."""
+        grey = image.ndim == 2 and _grey(materials.GRID)
+        img = image.copy() if grey or image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
         self.last_grid = None
         if dl.grid_alpha > 0.0:
-            self._draw_grid(img, T_cp, min(dl.grid_alpha, 1.0))
+            self._draw_grid(img[..., None] if img.ndim == 2 else img, T_cp, min(dl.grid_alpha, 1.0))
+        if img.ndim == 2 and not (grey_ok and grey_overlay(dl)):
+            img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
         R, t = T_cp[:3, :3], T_cp[:3, 3]
-        if len(dl.spheres):
-            self._draw_spheres(img, R, t, dl.spheres)
-        if len(dl.decals):
-            self._draw_decals(img, R, t, dl.decals)
+        boxes = self._draw_spheres(img, R, t, dl.spheres) if len(dl.spheres) else None
+        try:
+            if len(dl.decals):
+                self._draw_decals(img, R, t, dl.decals)
+        finally:
+            for x0, y0, x1, y1 in () if boxes is None else boxes:  # the z-buffer is empty between frames
+                self.zbuf[y0:y1, x0:x1] = np.inf
         self._draw_hud(img, dl)
         return img
 
@@ -97,33 +116,19 @@ class OverlayRenderer:
         blend_coverage(img, self.coverage, self.touched, n, np.asarray(materials.GRID, np.float64), alpha)
 
     def _boxes(self, samples: np.ndarray, visible: np.ndarray) -> np.ndarray:
-        """Pixel boxes [x0, y0, x1, y1) (N, 4) bounding projected outline samples (N, K, 3), empty where not
-        ``visible``. Samples beyond the projectable cone are first pulled radially onto its edge, which lies
-        outside the image (radial lens models are monotonic inside it), so the box still covers every image
-        pixel of the object; an outline reaching behind the camera gets the whole image (the kernels test
-        every pixel exactly)."""
-        n, k, _ = samples.shape
-        z = samples[..., 2]
-        front = (z > 0.0).all(axis=1)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            xy = samples[..., :2] / z[..., None]
-            r = np.linalg.norm(xy, axis=-1, keepdims=True)
-            xy = xy * np.minimum(1.0, self.max_radius / r)
-        pts = np.concatenate([xy, np.ones((n, k, 1))], axis=-1)
-        pts[~front] = [0.0, 0.0, 1.0]
-        uv, _ = project_points(self.cam_params, np.ascontiguousarray(pts.reshape(-1, 3)))
-        uv = uv.reshape(n, k, 2)
-        m = materials.BOX_MARGIN_PX
-        boxes = np.zeros((n, 4), np.int64)
-        boxes[:, 2], boxes[:, 3] = self.width, self.height
-        boxes[front, 0:2] = np.floor(uv[front].min(axis=1)) - m
-        boxes[front, 2:4] = np.ceil(uv[front].max(axis=1)) + m + 1
-        boxes[:, [0, 2]] = np.clip(boxes[:, [0, 2]], 0, self.width)
-        boxes[:, [1, 3]] = np.clip(boxes[:, [1, 3]], 0, self.height)
-        boxes[~visible] = 0
-        return boxes
+        """Pixel boxes (N, 4) of projected outline samples (N, K, 3) (``raster_kernels.outline_boxes``)."""
+        return outline_boxes(
+            np.ascontiguousarray(samples),
+            visible,
+            self.cam_params,
+            self.max_radius,
+            self.width,
+            self.height,
+            materials.BOX_MARGIN_PX,
+        )
 
-    def _draw_spheres(self, img, R, t, rec_p: np.ndarray) -> None:
+    def _draw_spheres(self, img, R, t, rec_p: np.ndarray) -> np.ndarray:
+        """Draw the spheres (plane-frame records) and return the pixel boxes whose z-buffer they wrote."""
         rec = rec_p.copy()
         c = rec_p[:, 0:3] @ R.T + t
         rec[:, 0:3] = c
@@ -138,7 +143,7 @@ class OverlayRenderer:
             shrink = 1.0 - (r / dist) ** 2
         visible = outside & (off_axis - half_angle < self.max_angle)
         if not visible.any():
-            return
+            return np.zeros((0, 4), np.int64)
         # The silhouette is the circle where the tangent cone from the camera touches the sphere.
         e1, e2 = _orthonormal_to(np.where(visible[:, None], dirs, [[0.0, 0.0, 1.0]]))
         centre = c * np.where(visible, shrink, 0.0)[:, None]
@@ -149,15 +154,11 @@ class OverlayRenderer:
         boxes = self._boxes(outline, visible)
         order = np.argsort(-np.where(visible, dist, -np.inf))  # back to front: rims blend over what is behind
         order = order[visible[order]]
+        boxes = np.ascontiguousarray(boxes[order])
         draw_spheres(
-            img,
-            self.zbuf,
-            self.rays,
-            np.ascontiguousarray(rec[order]),
-            np.ascontiguousarray(boxes[order]),
-            R @ self.light_plane,
-            self.shading,
+            img, self.zbuf, self.rays, np.ascontiguousarray(rec[order]), boxes, R @ self.light_plane, self.shading
         )
+        return boxes
 
     def _draw_decals(self, img, R, t, dec: np.ndarray) -> None:
         plane = np.concatenate([t, R[:, 0], R[:, 1], R[:, 2]])

@@ -35,6 +35,8 @@ import math
 import numpy as np
 from numba import njit
 
+from ..camera.camproj_kernels import project
+
 PLAIN, EYE, BALL = 0, 1, 2
 S_RADIUS, S_ROT, S_COLOURS, S_PATTERN, S_P0, S_P1, S_SPEC = 3, 4, 13, 22, 23, 24, 25  # centre at 0:3
 SPHERE_LEN = 26
@@ -196,37 +198,38 @@ def draw_decals(img, zbuf, rays, plane, decals, boxes):
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _rasterise_segment(cov, touched, n, x0, y0, x1, y1, reach):
-    H, W = cov.shape
-    cap = touched.shape[0]
+def _rasterise_segment(cov, touched, n, W, H, x0, y0, x1, y1, reach):
+    """One segment into the flat coverage buffer ``cov`` (H·W), walked along its major axis a (b the minor one;
+    pixel (a, b) is flat index a·sa + b·sb). Branch-free per pixel: every pixel of the band is written (its
+    coverage kept as the maximum, so pixels out of reach keep theirs) and its index stored at ``touched[n]``, which
+    only counts (n grows) for a pixel newly within reach; the last slot of ``touched`` is scratch, for a full
+    buffer."""
+    cap = touched.shape[0] - 1
     ex, ey = x1 - x0, y1 - y0
     ee = ex * ex + ey * ey
     inv_ee = 1.0 / ee if ee > 0.0 else 0.0
-    steep = abs(ey) > abs(ex)
-    a0, b0, a1, b1 = (y0, x0, y1, x1) if steep else (x0, y0, x1, y1)  # walk along the major axis a
+    if abs(ey) > abs(ex):  # steep: a = y, b = x
+        a0, b0, a1, b1, ea, eb, oa, ob, amax, bmax, sa, sb = y0, x0, y1, x1, ey, ex, y0, x0, H, W, W, 1
+    else:
+        a0, b0, a1, b1, ea, eb, oa, ob, amax, bmax, sa, sb = x0, y0, x1, y1, ex, ey, x0, y0, W, H, 1, W
     if a1 < a0:
         a0, b0, a1, b1 = a1, b1, a0, b0
-    amax = H if steep else W
-    bmax = W if steep else H
     slope = (b1 - b0) / (a1 - a0) if a1 > a0 else 0.0
     band = reach * math.sqrt(1.0 + slope * slope) + 0.5
     r2 = reach * reach
     for a in range(max(int(math.floor(a0)), 0), min(int(math.ceil(a1)), amax - 1) + 1):
         bc = b0 + slope * (min(max(a, a0), a1) - a0)
+        pa = a - oa
         for b in range(max(int(math.ceil(bc - band)), 0), min(int(math.floor(bc + band)), bmax - 1) + 1):
-            x, y = (b, a) if steep else (a, b)
-            px, py = x - x0, y - y0
-            t = min(max((px * ex + py * ey) * inv_ee, 0.0), 1.0)
-            dx, dy = px - t * ex, py - t * ey
-            d2 = dx * dx + dy * dy
-            if d2 >= r2:
-                continue
-            c = min(reach - math.sqrt(d2), 1.0)
-            if cov[y, x] == 0.0 and n < cap:
-                touched[n] = y * W + x
-                n += 1
-            if c > cov[y, x]:
-                cov[y, x] = c
+            pb = b - ob
+            t = min(max((pa * ea + pb * eb) * inv_ee, 0.0), 1.0)
+            da, db = pa - t * ea, pb - t * eb
+            d2 = da * da + db * db
+            i = a * sa + b * sb
+            old = cov[i]
+            touched[min(n, cap)] = i
+            n = min(n + ((old == 0.0) & (d2 < r2)), cap)
+            cov[i] = max(old, np.float32(min(reach - math.sqrt(d2), 1.0)))
     return n
 
 
@@ -234,32 +237,69 @@ def _rasterise_segment(cov, touched, n, x0, y0, x1, y1, reach):
 def rasterise_polylines(cov, touched, uv, ok, half_width):
     """Coverage of polylines (L, S, 2) (pixel positions; segment s → s+1 of a line is drawn when ``ok`` holds
     at both ends) of half-width ``half_width`` into ``cov`` (H, W) float32 (zero on entry except where already
-    drawn), as the maximum over segments; appends each newly covered pixel's flat index to ``touched``
-    (capacity-bounded) and returns how many it holds.
+    drawn), as the maximum over segments; appends each newly covered pixel's flat index to ``touched`` (its last
+    slot is scratch: capacity ``len(touched) - 1``) and returns how many it holds.
 
     Each segment is walked along its major axis between its end points only (consecutive segments share end
     points, so a line is continuous; its two ends are cut square), over the band of the minor axis that can lie
     within w + 1/2 of it.
     """
+    H, W = cov.shape
+    flat = cov.reshape(-1)
     n = 0
     reach = half_width + 0.5
     for i in range(uv.shape[0]):
         for s in range(uv.shape[1] - 1):
             if ok[i, s] and ok[i, s + 1]:
                 n = _rasterise_segment(
-                    cov, touched, n, uv[i, s, 0], uv[i, s, 1], uv[i, s + 1, 0], uv[i, s + 1, 1], reach
+                    flat, touched, n, W, H, uv[i, s, 0], uv[i, s, 1], uv[i, s + 1, 0], uv[i, s + 1, 1], reach
                 )
     return n
 
 
 @njit(nogil=True, cache=True)
 def blend_coverage(img, cov, touched, n, colour, alpha):
-    """Blend ``colour`` at ``alpha`` × coverage into the touched pixels and clear their coverage."""
-    W = cov.shape[1]
+    """Blend ``colour`` at ``alpha`` × coverage into the touched pixels of ``img`` (H, W, C) (C-contiguous; C = 3:
+    BGR; C = 1: grey, with ``colour[0]``) and clear their coverage. Pixels are addressed by their flat index."""
+    C = img.shape[2]
+    pixels = img.reshape(-1, C)
+    flat = cov.reshape(-1)
     for i in range(n):
-        y = touched[i] // W
-        x = touched[i] - y * W
-        a = alpha * np.float64(cov[y, x])
-        cov[y, x] = 0.0
-        for c in range(3):
-            img[y, x, c] = np.uint8(np.float64(img[y, x, c]) * (1.0 - a) + colour[c] * a + 0.5)
+        p = touched[i]
+        a = alpha * np.float64(flat[p])
+        flat[p] = 0.0
+        for c in range(C):
+            pixels[p, c] = np.uint8(np.float64(pixels[p, c]) * (1.0 - a) + colour[c] * a + 0.5)
+
+
+@njit(nogil=True, cache=True)
+def outline_boxes(samples, visible, cam, max_radius, W, H, margin):
+    """Pixel boxes [x0, y0, x1, y1) (N, 4) int bounding projected outline samples (N, K, 3) (camera frame) through
+    the lens ``cam`` (``CameraModel.kernel_params()``), padded by ``margin`` px and clipped to the W×H image; empty
+    (zeros) where not ``visible``. Samples beyond the projectable cone (unit-plane radius ``max_radius``) are first
+    pulled radially onto its edge, which lies outside the image (radial lens models are monotonic inside it), so
+    the box still covers every image pixel of the object; an outline reaching behind the camera gets the whole
+    image (the raster kernels test every pixel exactly)."""
+    n, k = samples.shape[0], samples.shape[1]
+    boxes = np.zeros((n, 4), np.int64)
+    for i in range(n):
+        if not visible[i]:
+            continue
+        boxes[i, 2], boxes[i, 3] = W, H
+        front = True
+        for j in range(k):
+            front = front and samples[i, j, 2] > 0.0
+        if not front:
+            continue
+        u0, v0, u1, v1 = np.inf, np.inf, -np.inf, -np.inf
+        for j in range(k):
+            x, y = samples[i, j, 0] / samples[i, j, 2], samples[i, j, 1] / samples[i, j, 2]
+            r = math.sqrt(x * x + y * y)
+            scale = min(1.0, max_radius / r) if r > 0.0 else 1.0
+            u, v, _ = project(cam, x * scale, y * scale, 1.0)
+            u0, v0, u1, v1 = min(u0, u), min(v0, v), max(u1, u), max(v1, v)
+        boxes[i, 0] = min(max(int(math.floor(u0)) - margin, 0), W)
+        boxes[i, 1] = min(max(int(math.floor(v0)) - margin, 0), H)
+        boxes[i, 2] = min(max(int(math.ceil(u1)) + margin + 1, 0), W)
+        boxes[i, 3] = min(max(int(math.ceil(v1)) + margin + 1, 0), H)
+    return boxes

@@ -3,14 +3,18 @@
 The system tracks the first ``frames`` frames of the scene (sync mode) and every tracked frame's image and pose
 is kept; then each AR scene is rendered over those frames in turn — plane, scene logic, grid, ray-cast spheres
 and decals, screen cross-hair — timing ``Augmenter.augment`` alone (the AR worker's cost; the tracker only
-enqueues). A warm-up frame excludes numba compilation. Wall-clock time is the figure; the thread's CPU time is
-shown next to it because on a loaded machine the wall clock also counts time spent waiting for a core. The
-video encoder's cost per frame is shown apart: it runs in the same worker thread but is not rendering.
+enqueues), as the AR worker draws (a grey frame with a grey overlay stays grey). A warm-up frame excludes numba
+compilation. Wall-clock time is the figure; the thread's CPU time is shown next to it because on a loaded machine
+the wall clock also counts time spent waiting for a core. The JPEG encoding of each drawn frame for the viewer
+(``camera/augmented``) and the video encoder's cost per frame are shown apart: they run in the same worker thread
+but are not rendering.
 
 Then what the AR view costs the tracker: the same frames tracked again (sync) without a viewer, then with a viewer
 recording to a temporary .rrd, once without AR and once per AR scene shown in it (the AR worker's frames logged as
 ``camera/augmented``, as in ``ptam run``: drawn at most ``viewer.ar_max_fps`` times a second); the tracker's median
-ms per frame for each, the augmented frames drawn, and the frames the viewer or the AR worker had no time for.
+ms per frame for each, the augmented frames drawn, the frames the viewer or the AR worker had no time for, and the
+AR worker's CPU time per tracked frame (what it takes from the cores the tracker and mapper share; unlike the
+tracker's median it hardly depends on what else the machine runs).
 """
 
 from __future__ import annotations
@@ -19,6 +23,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from ..ar import SCENES, Augmenter, attach
@@ -54,6 +59,32 @@ def _tracked_frames(cfg, seq: Path, frames: int):
     return camera, kept, snapshot
 
 
+def _scene_row(cfg, camera, name: str, kept) -> tuple[dict, np.ndarray]:
+    """Scene ``name`` drawn over every kept frame as the AR worker draws it: ms per frame (wall and thread CPU)
+    and the CPU time of its JPEG for the viewer; and the last frame drawn."""
+    aug = Augmenter(camera, cfg, name)
+    aug.augment(*kept[0][:2], kept[0][2] - 1.0, grey_ok=True)  # compile / warm caches
+    ms, cpu, jpeg = [], [], []
+    for image, T_cw, t in kept:
+        t0, c0 = time.perf_counter(), time.thread_time()
+        last = aug.augment(image, T_cw, t, grey_ok=True)
+        ms.append(1e3 * (time.perf_counter() - t0))
+        c1 = time.thread_time()
+        cpu.append(1e3 * (c1 - c0))
+        cv2.imencode(".jpg", last, [cv2.IMWRITE_JPEG_QUALITY, cfg.viewer.jpeg_quality])
+        jpeg.append(1e3 * (time.thread_time() - c1))
+    ms = np.array(ms)
+    row = dict(
+        mean=float(ms.mean()),
+        median=float(np.median(ms)),
+        p95=float(np.percentile(ms, 95)),
+        max=float(ms.max()),
+        cpu_mean=float(np.mean(cpu)),
+        jpeg_cpu_mean=float(np.mean(jpeg)),
+    )
+    return row, last
+
+
 def run_ar_benchmark(cfg, scene: str = "two_wall", out=print, frames: int = 200) -> dict:
     """Render every AR scene over the tracked frames; print ms per frame and the summary line; return them."""
     if frames < 2:
@@ -67,28 +98,21 @@ def run_ar_benchmark(cfg, scene: str = "two_wall", out=print, frames: int = 200)
         f"AR overlay cost per frame, {len(kept)} tracked frames at {camera.width}x{camera.height}, map of "
         f"{snapshot.n_points} points (budget {RENDER_BUDGET_MS:g} ms)"
     )
-    out(f"{'scene':<10}{'mean (ms)':>11}{'median (ms)':>13}{'p95 (ms)':>10}{'max (ms)':>10}{'CPU mean (ms)':>15}")
+    out(
+        f"{'scene':<10}{'mean (ms)':>11}{'median (ms)':>13}{'p95 (ms)':>10}{'max (ms)':>10}{'CPU mean (ms)':>15}"
+        f"{'JPEG CPU (ms)':>15}"
+    )
     rows = {}
     last = None
     for name in (s for s in SCENES if s != ArScene.OFF):
-        aug = Augmenter(camera, cfg, name)
-        aug.augment(*kept[0][:2], kept[0][2] - 1.0)  # compile / warm caches
-        ms, cpu = [], []
-        for image, T_cw, t in kept:
-            t0, c0 = time.perf_counter(), time.thread_time()
-            last = aug.augment(image, T_cw, t)
-            ms.append(1e3 * (time.perf_counter() - t0))
-            cpu.append(1e3 * (time.thread_time() - c0))
-        ms = np.array(ms)
-        rows[name] = dict(
-            mean=float(ms.mean()),
-            median=float(np.median(ms)),
-            p95=float(np.percentile(ms, 95)),
-            max=float(ms.max()),
-            cpu_mean=float(np.mean(cpu)),
-        )
+        rows[name], last = _scene_row(cfg, camera, name, kept)
         r = rows[name]
-        out(f"{name:<10}{r['mean']:>11.2f}{r['median']:>13.2f}{r['p95']:>10.2f}{r['max']:>10.2f}{r['cpu_mean']:>15.2f}")
+        out(
+            f"{name:<10}{r['mean']:>11.2f}{r['median']:>13.2f}{r['p95']:>10.2f}{r['max']:>10.2f}{r['cpu_mean']:>15.2f}"
+            f"{r['jpeg_cpu_mean']:>15.2f}"
+        )
+    if last.ndim == 2:
+        last = cv2.cvtColor(last, cv2.COLOR_GRAY2BGR)  # the video is BGR
     encode = {}
     with tempfile.TemporaryDirectory() as tmp:
         for suffix, codec in FOURCC.items():
@@ -142,6 +166,7 @@ def _track_with_viewer(cfg, seq: Path, frames: int, viewer: bool, scene: str | N
         dropped=view.dropped if view is not None else 0,
         ar_drawn=layer.frames_rendered if layer is not None else 0,
         ar_dropped=(layer.dropped + view.ar_dropped) if layer is not None else 0,
+        ar_cpu_ms=1e3 * layer.cpu_s / max(len(ms), 1) if layer is not None else 0.0,
     )
 
 
@@ -154,7 +179,7 @@ def _viewer_rows(cfg, seq: Path, frames: int, out) -> dict:
     )
     out(
         f"{'viewer':<8}{'AR view':<9}{'median (ms)':>12}{'p95 (ms)':>10}{'frames not shown':>18}"
-        f"{'AR frames drawn':>17}{'AR frames not shown':>21}"
+        f"{'AR frames drawn':>17}{'AR frames not shown':>21}{'AR CPU (ms/frame)':>19}"
     )
     rows = {}
     scenes = [s for s in dict.fromkeys((cfg.ar.scene, ArScene.GAME)) if s != ArScene.OFF]
@@ -162,6 +187,6 @@ def _viewer_rows(cfg, seq: Path, frames: int, out) -> dict:
         r = rows[name] = _track_with_viewer(cfg, seq, frames, viewer, scene)
         out(
             f"{'rrd' if viewer else 'none':<8}{str(scene or ArScene.OFF):<9}{r['median']:>12.2f}{r['p95']:>10.2f}"
-            f"{r['dropped']:>18d}{r['ar_drawn']:>17d}{r['ar_dropped']:>21d}"
+            f"{r['dropped']:>18d}{r['ar_drawn']:>17d}{r['ar_dropped']:>21d}{r['ar_cpu_ms']:>19.2f}"
         )
     return rows

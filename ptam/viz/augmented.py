@@ -80,7 +80,8 @@ class AugmentedView:
         return True
 
     def show(self, index: int, timestamp: float, bgr: np.ndarray) -> None:
-        """Queue frame ``index`` (BGR uint8) for logging as ``camera/augmented``; never waits."""
+        """Queue frame ``index`` (BGR uint8, or grey: ``ArView.show``) for logging as ``camera/augmented``; never
+        waits."""
         image = self._encode(bgr) if self._room() else None
         if image is None:
             self.dropped += 1
@@ -94,9 +95,10 @@ class AugmentedView:
         return self.alive() and not self.out.full()
 
     def _encode(self, bgr: np.ndarray) -> rr.EncodedImage | rr.Image | None:
-        """JPEG like the camera image, or the exact BGR pixels (``viewer.ar_image_lossless``); None if OpenCV
-        cannot encode it (a display problem never stops the AR worker)."""
+        """JPEG like the camera image (a grey frame as a one-channel JPEG), or the exact BGR pixels
+        (``viewer.ar_image_lossless``); None if OpenCV cannot encode it (a display problem never stops the AR
+        worker)."""
         if self.cfg.ar_image_lossless:
-            return rr.Image(bgr, color_model="BGR")
+            return rr.Image(bgr if bgr.ndim == 3 else cv2.cvtColor(bgr, cv2.COLOR_GRAY2BGR), color_model="BGR")
         ok, jpeg = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, self.cfg.jpeg_quality])
         return rr.EncodedImage(contents=jpeg.tobytes(), media_type="image/jpeg") if ok else None

@@ -148,3 +148,28 @@ def rasterise_polylines_ref(shape, uv, ok, half_width):
         d = np.hypot(x - x0 - t * e[0], y - y0 - t * e[1])
         cov = np.maximum(cov, np.where(inside, np.clip(reach - d, 0.0, 1.0), 0.0))
     return cov
+
+
+def outline_boxes_ref(samples, visible, camera, max_radius, margin):
+    """Pixel boxes [x0, y0, x1, y1) (N, 4) of outline samples (N, K, 3) projected by ``camera`` (after pulling
+    samples beyond the projectable cone onto its edge), padded and clipped; the whole image for an outline reaching
+    behind the camera, empty where not ``visible``."""
+    n, k, _ = samples.shape
+    W, H = camera.size
+    z = samples[..., 2]
+    front = (z > 0.0).all(axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xy = samples[..., :2] / z[..., None]
+        r = np.linalg.norm(xy, axis=-1, keepdims=True)
+        xy = xy * np.minimum(1.0, max_radius / r)
+    pts = np.concatenate([xy, np.ones((n, k, 1))], axis=-1)
+    pts[~front] = [0.0, 0.0, 1.0]
+    uv = camera.project(pts.reshape(-1, 3)).reshape(n, k, 2)
+    boxes = np.zeros((n, 4), np.int64)
+    boxes[:, 2], boxes[:, 3] = W, H
+    boxes[front, 0:2] = np.floor(uv[front].min(axis=1)) - margin
+    boxes[front, 2:4] = np.ceil(uv[front].max(axis=1)) + margin + 1
+    boxes[:, [0, 2]] = np.clip(boxes[:, [0, 2]], 0, W)
+    boxes[:, [1, 3]] = np.clip(boxes[:, [1, 3]], 0, H)
+    boxes[~visible] = 0
+    return boxes
