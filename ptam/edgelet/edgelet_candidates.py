@@ -50,6 +50,11 @@ def _smoothed(image: np.ndarray, cfg: EdgeletConfig) -> np.ndarray:
     return cv2.GaussianBlur(image, (0, 0), s) if s > 0 else image
 
 
+def canny_linked(image: np.ndarray, cfg: EdgeletConfig) -> np.ndarray:
+    """Canny's edgels linked by hysteresis (the candidates' source, §4.3)."""
+    return cv2.Canny(_smoothed(image, cfg), cfg.canny_low, cfg.canny_high, L2gradient=_SOBEL_L2)
+
+
 def canny_edgels(image: np.ndarray, cfg: EdgeletConfig) -> tuple[np.ndarray, np.ndarray]:
     """(edgels, maximal): Canny's linked edgels and every non-maximum-suppressed edgel above the low threshold."""
     img = _smoothed(image, cfg)
@@ -78,7 +83,7 @@ def extract_candidates(
     image: np.ndarray, cfg: EdgeletConfig, existing_centres: np.ndarray | None = None
 ) -> EdgeletCandidates:
     """Candidate edgelets of a full-size keyframe ``image`` away from ``existing_centres`` (K, 2) (§4.3)."""
-    centre, direction, deviation = segment_edgels(canny_edgels(image, cfg)[0], cfg)
+    centre, direction, deviation = segment_edgels(canny_linked(image, cfg), cfg)
     b = cfg.candidate_border_px
     H, W = image.shape
     keep = (deviation <= cfg.candidate_max_deviation_px) & (centre[:, 0] >= b) & (centre[:, 1] >= b)
