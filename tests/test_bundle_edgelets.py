@@ -175,7 +175,7 @@ def test_kernels_match_reference(problem):
     assert close(assemble(blocks, st.pair_rows, st.pair_cols, nf), rS) and close(rhs, rrhs) and close(Vinv, rVinv)
     assert not Vinv[0].any()
     dcam = np.random.default_rng(3).normal(size=6 * nf)
-    de = EK.ba_edgelet_backsub(Vinv, eb, W, live, es.mrow, es.e_start, es.order, dcam)
+    de = K.ba_backsub(Vinv, eb, W, live, es.mrow, es.e_start, es.order, dcam)
     assert close(de, RE.ba_edgelet_backsub_ref(Vinv, eb, W, live, es.mrow, es.medg, dcam))
 
 

@@ -12,7 +12,7 @@ the Tukey biweight and accumulated:
   predicted; the gradients take −ε so that one step solves both.
 * ``ba_edgelet_schur``: S −= Σ W V*⁻¹ Wᵀ over every camera pair that shares an edgelet and the reduced
   right-hand side, V* the diagonal × (1 + λ); it continues the walk of ``ba_pair_script`` after the points.
-* ``ba_edgelet_backsub``: δμ_E = V*⁻¹ (ε_b − Σ Wᵀ δμ_K).
+* the edgelet updates δμ_E = V*⁻¹ (ε_b − Σ Wᵀ δμ_K) are ``bundle_kernels.ba_backsub``'s, as for points.
 
 Per Agility §8 every distance has unit (one-pixel) variance. The numpy references are in
 ``tests/reference/bundle_edgelets.py``.
@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit
 
 from ..camera.camproj_kernels import project, project_jac
+from .bundle_kernels import eliminate
 
 
 @njit(nogil=True, cache=True)
@@ -209,72 +210,12 @@ def inv_sym4(M, lam, out, L, Li):
 
 
 @njit(nogil=True, cache=True)
-def _sub_wvwt4(blocks, q, WVa, W, kb):
-    """blocks[q] −= WVa · W[kb]ᵀ (6×4 · 4×6)."""
-    for a in range(6):
-        for b in range(6):
-            s = 0.0
-            for c in range(4):
-                s += WVa[a, c] * W[kb, b, c]
-            blocks[q, a, b] -= s
-
-
-@njit(nogil=True, cache=True)
 def ba_edgelet_schur(V, eb, W, live, lam, mrow, e_start, order, pair_id, blocks, rhs, Vinv):
-    """Subtract the edgelets' W V*⁻¹ Wᵀ from the reduced system's ``blocks`` and W V*⁻¹ ε_b from ``rhs``; V*⁻¹
-    (E, 4, 4) is kept for the back-substitution. ``order`` lists the measurements by edgelet (``e_start``), then
-    camera row; ``pair_id`` is the edgelets' part of ``ba_pair_script``'s walk."""
-    WVa = np.empty((6, 4))
+    """Subtract the edgelets' W V*⁻¹ Wᵀ from the reduced system's ``blocks`` and W V*⁻¹ ε_b from ``rhs``
+    (``bundle_kernels.eliminate``, as for points); V*⁻¹ (E, 4, 4) is kept for the back-substitution
+    (``bundle_kernels.ba_backsub``). ``pair_id`` is the edgelets' part of ``ba_pair_script``'s walk."""
     L = np.zeros((4, 4))
     Li = np.zeros((4, 4))
-    q = 0
     for e in range(e_start.shape[0] - 1):
         inv_sym4(V[e], lam, Vinv[e], L, Li)
-        Vi = Vinv[e]
-        for ia in range(e_start[e], e_start[e + 1]):
-            ka = order[ia]
-            ra = mrow[ka]
-            if ra < 0:
-                continue
-            if live[ka]:
-                for a in range(6):
-                    for b in range(4):
-                        s = 0.0
-                        for c in range(4):
-                            s += W[ka, a, c] * Vi[c, b]
-                        WVa[a, b] = s
-                    rhs[6 * ra + a] -= (
-                        WVa[a, 0] * eb[e, 0] + WVa[a, 1] * eb[e, 1] + WVa[a, 2] * eb[e, 2] + (WVa[a, 3] * eb[e, 3])
-                    )
-                _sub_wvwt4(blocks, ra, WVa, W, ka)
-            for ib in range(e_start[e], ia):
-                kb = order[ib]
-                if mrow[kb] < 0:
-                    continue
-                pid = pair_id[q]
-                q += 1
-                if live[ka] and live[kb]:
-                    _sub_wvwt4(blocks, pid, WVa, W, kb)
-
-
-@njit(nogil=True, cache=True)
-def ba_edgelet_backsub(Vinv, eb, W, live, mrow, e_start, order, dcam):
-    """Edgelet updates δμ_E = V*⁻¹ (ε_b − Σ_j W_jᵀ δμ_j) (E, 4) from the camera updates dcam (6·n_free,)."""
-    n = e_start.shape[0] - 1
-    de = np.zeros((n, 4))
-    v = np.empty(4)
-    for e in range(n):
-        for b in range(4):
-            v[b] = eb[e, b]
-        for i in range(e_start[e], e_start[e + 1]):
-            k = order[i]
-            r = mrow[k]
-            if r < 0 or not live[k]:
-                continue
-            for a in range(6):
-                d = dcam[6 * r + a]
-                for b in range(4):
-                    v[b] -= W[k, a, b] * d
-        for a in range(4):
-            de[e, a] = Vinv[e, a, 0] * v[0] + Vinv[e, a, 1] * v[1] + Vinv[e, a, 2] * v[2] + Vinv[e, a, 3] * v[3]
-    return de
+    eliminate(Vinv, eb, W, live, mrow, e_start, order, pair_id, blocks, rhs)

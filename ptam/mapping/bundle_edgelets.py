@@ -31,13 +31,12 @@ from ..edgelet import EDGELET_DOF, Edgelets, perp
 from ..geometry import se3
 from .bundle_edgelet_kernels import (
     ba_edgelet_along,
-    ba_edgelet_backsub,
     ba_edgelet_linearise,
     ba_edgelet_residuals,
     ba_edgelet_schur,
 )
 from .bundle_inputs import EdgeletBundleInput
-from .bundle_kernels import ba_robust_cost
+from .bundle_kernels import ba_backsub, ba_robust_cost
 from .bundle_structure import BundleStructure, EdgeletStructure
 
 
@@ -140,7 +139,7 @@ class EdgeletLM:
         if not self.n:
             return np.zeros((0, 4))
         es = self.es
-        return ba_edgelet_backsub(self.Vinv, self.eb, self.W, self.live, es.mrow, es.e_start, es.order, dcam)
+        return ba_backsub(self.Vinv, self.eb, self.W, self.live, es.mrow, es.e_start, es.order, dcam)
 
     def trial(self, P_new: np.ndarray, de: np.ndarray, c2: float) -> tuple[np.ndarray | None, float]:
         """The frames after the step ``de`` and their cost at ``P_new`` on the measurements live at linearisation."""

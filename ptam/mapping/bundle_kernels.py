@@ -290,13 +290,60 @@ def inv_sym3(M, lam, out):
 
 @njit(nogil=True, cache=True)
 def _sub_wvwt(blocks, q, WVa, W, kb):
-    """blocks[q] −= WVa · W[kb]ᵀ (6×3 · 3×6)."""
+    """blocks[q] −= WVa · W[kb]ᵀ (6×d · d×6); the innermost product of the O(N²M) pair walk, written out for
+    points (d = 3: a loop there costs global BA ~30 %)."""
+    d = WVa.shape[1]
+    if d == 3:
+        for a in range(6):
+            w0 = WVa[a, 0]
+            w1 = WVa[a, 1]
+            w2 = WVa[a, 2]
+            for b in range(6):
+                blocks[q, a, b] -= w0 * W[kb, b, 0] + w1 * W[kb, b, 1] + w2 * W[kb, b, 2]
+        return
     for a in range(6):
-        w0 = WVa[a, 0]
-        w1 = WVa[a, 1]
-        w2 = WVa[a, 2]
         for b in range(6):
-            blocks[q, a, b] -= w0 * W[kb, b, 0] + w1 * W[kb, b, 1] + w2 * W[kb, b, 2]
+            s = 0.0
+            for c in range(d):
+                s += WVa[a, c] * W[kb, b, c]
+            blocks[q, a, b] -= s
+
+
+@njit(nogil=True, cache=True)
+def eliminate(Vinv, eb, W, live, mrow, start, order, pair_id, blocks, rhs):
+    """Subtract Σ W V*⁻¹ Wᵀ of every landmark (points: 3 DOF; edgelets: 4, Agility §4.4) from the reduced
+    system's ``blocks`` and W V*⁻¹ ε_b from ``rhs``. ``order`` lists the measurements by landmark (``start``),
+    then camera row; ``pair_id`` numbers the camera pairs in that walk (``ba_pair_script``)."""
+    d = W.shape[2]
+    WVa = np.empty((6, d))
+    q = 0
+    for p in range(start.shape[0] - 1):
+        Vi = Vinv[p]
+        for ia in range(start[p], start[p + 1]):
+            ka = order[ia]
+            ra = mrow[ka]
+            if ra < 0:
+                continue
+            if live[ka]:
+                for a in range(6):
+                    for b in range(d):
+                        s = 0.0
+                        for c in range(d):
+                            s += W[ka, a, c] * Vi[c, b]
+                        WVa[a, b] = s
+                    s = 0.0
+                    for b in range(d):
+                        s += WVa[a, b] * eb[p, b]
+                    rhs[6 * ra + a] -= s
+                _sub_wvwt(blocks, ra, WVa, W, ka)
+            for ib in range(start[p], ia):
+                kb = order[ib]
+                if mrow[kb] < 0:
+                    continue
+                pid = pair_id[q]
+                q += 1
+                if live[ka] and live[kb]:
+                    _sub_wvwt(blocks, pid, WVa, W, kb)
 
 
 @njit(nogil=True, cache=True)
@@ -314,53 +361,34 @@ def ba_schur(U, ea, V, eb, W, live, lam, mrow, pt_start, order, pair_id, blocks,
                 blocks[r, a, b] = U[r, a, b]
             blocks[r, a, a] *= 1.0 + lam
             rhs[6 * r + a] = ea[r, a]
-    WVa = np.empty((6, 3))
-    q = 0
     for p in range(pt_start.shape[0] - 1):
         inv_sym3(V[p], lam, Vinv[p])
-        Vi = Vinv[p]
-        for ia in range(pt_start[p], pt_start[p + 1]):
-            ka = order[ia]
-            ra = mrow[ka]
-            if ra < 0:
-                continue
-            if live[ka]:
-                for a in range(6):
-                    for b in range(3):
-                        WVa[a, b] = W[ka, a, 0] * Vi[0, b] + W[ka, a, 1] * Vi[1, b] + W[ka, a, 2] * Vi[2, b]
-                    rhs[6 * ra + a] -= WVa[a, 0] * eb[p, 0] + WVa[a, 1] * eb[p, 1] + WVa[a, 2] * eb[p, 2]
-                _sub_wvwt(blocks, ra, WVa, W, ka)
-            for ib in range(pt_start[p], ia):
-                kb = order[ib]
-                if mrow[kb] < 0:
-                    continue
-                pid = pair_id[q]
-                q += 1
-                if live[ka] and live[kb]:
-                    _sub_wvwt(blocks, pid, WVa, W, kb)
+    eliminate(Vinv, eb, W, live, mrow, pt_start, order, pair_id, blocks, rhs)
 
 
 @njit(nogil=True, cache=True)
 def ba_backsub(Vinv, eb, W, live, mrow, pt_start, order, dcam):
-    """Point updates δp = V*⁻¹ (ε_b − Σ_j W_jᵀ δμ_j) (M, 3) from the camera updates dcam (6·n_free,)."""
+    """Landmark updates δp = V*⁻¹ (ε_b − Σ_j W_jᵀ δμ_j) (M, d) from the camera updates dcam (6·n_free,); points
+    (d = 3) and edgelets (d = 4) alike."""
     m = pt_start.shape[0] - 1
-    dp = np.zeros((m, 3))
+    d = W.shape[2]
+    dp = np.zeros((m, d))
+    v = np.empty(d)
     for p in range(m):
-        v0 = eb[p, 0]
-        v1 = eb[p, 1]
-        v2 = eb[p, 2]
+        for b in range(d):
+            v[b] = eb[p, b]
         for i in range(pt_start[p], pt_start[p + 1]):
             k = order[i]
             r = mrow[k]
             if r < 0 or not live[k]:
                 continue
             for a in range(6):
-                d = dcam[6 * r + a]
-                v0 -= W[k, a, 0] * d
-                v1 -= W[k, a, 1] * d
-                v2 -= W[k, a, 2] * d
-        Vi = Vinv[p]
-        dp[p, 0] = Vi[0, 0] * v0 + Vi[0, 1] * v1 + Vi[0, 2] * v2
-        dp[p, 1] = Vi[1, 0] * v0 + Vi[1, 1] * v1 + Vi[1, 2] * v2
-        dp[p, 2] = Vi[2, 0] * v0 + Vi[2, 1] * v1 + Vi[2, 2] * v2
+                dc = dcam[6 * r + a]
+                for b in range(d):
+                    v[b] -= W[k, a, b] * dc
+        for a in range(d):
+            s = 0.0
+            for b in range(d):
+                s += Vinv[p, a, b] * v[b]
+            dp[p, a] = s
     return dp
