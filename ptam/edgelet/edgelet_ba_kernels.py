@@ -25,10 +25,58 @@ from numba import njit
 from ..camera.camproj_kernels import project_jac
 
 
+@njit(nogil=True, cache=True, inline="always")
+def sample_in_camera(T, E, z):
+    """The sample point at E-frame z on the edgelet's axis, in the frame of pose T."""
+    wx = E[0, 3] + z * E[0, 2]
+    wy = E[1, 3] + z * E[1, 2]
+    wz = E[2, 3] + z * E[2, 2]
+    return (
+        T[0, 0] * wx + T[0, 1] * wy + T[0, 2] * wz + T[0, 3],
+        T[1, 0] * wx + T[1, 1] * wy + T[1, 2] * wz + T[1, 3],
+        T[2, 0] * wx + T[2, 1] * wy + T[2, 2] * wz + T[2, 3],
+    )
+
+
+@njit(nogil=True, cache=True)
+def measurement_rows(cam, T, E, z2, a, n, J, jp, je, r):
+    """One measurement's residuals r (2,) px and Jacobian rows jp (2, 6), je (2, 4) for pose T, edgelet frame E,
+    sample points at E-frame z2 (2,) and the measured line through a with unit normal n; both sample points must
+    be in front of the camera."""
+    # The edgelet's x- and y-axes in the camera frame.
+    xc0 = T[0, 0] * E[0, 0] + T[0, 1] * E[1, 0] + T[0, 2] * E[2, 0]
+    xc1 = T[1, 0] * E[0, 0] + T[1, 1] * E[1, 0] + T[1, 2] * E[2, 0]
+    xc2 = T[2, 0] * E[0, 0] + T[2, 1] * E[1, 0] + T[2, 2] * E[2, 0]
+    yc0 = T[0, 0] * E[0, 1] + T[0, 1] * E[1, 1] + T[0, 2] * E[2, 1]
+    yc1 = T[1, 0] * E[0, 1] + T[1, 1] * E[1, 1] + T[1, 2] * E[2, 1]
+    yc2 = T[2, 0] * E[0, 1] + T[2, 1] * E[1, 1] + T[2, 2] * E[2, 1]
+    for s in range(2):
+        z = z2[s]
+        X, Y, Z = sample_in_camera(T, E, z)
+        u, v, _ = project_jac(cam, X, Y, Z, J)
+        r[s] = n[0] * (u - a[0]) + n[1] * (v - a[1])
+        g0 = n[0] * J[0, 0] + n[1] * J[1, 0]
+        g1 = n[0] * J[0, 1] + n[1] * J[1, 1]
+        g2 = n[0] * J[0, 2] + n[1] * J[1, 2]
+        jp[s, 0] = g0
+        jp[s, 1] = g1
+        jp[s, 2] = g2
+        jp[s, 3] = Y * g2 - Z * g1
+        jp[s, 4] = Z * g0 - X * g2
+        jp[s, 5] = X * g1 - Y * g0
+        gx = g0 * xc0 + g1 * xc1 + g2 * xc2
+        gy = g0 * yc0 + g1 * yc1 + g2 * yc2
+        je[s, 0] = gx
+        je[s, 1] = gy
+        je[s, 2] = -z * gy
+        je[s, 3] = z * gx
+
+
 @njit(nogil=True, cache=True)
 def edgelet_ba_terms(cam, poses, frames, mkf, medg, line_a, line_n, along):
     """-> err (M, 2), Jp (M, 2, 6), Je (M, 2, 4), valid (M,) for measurements (keyframe ``mkf``, edgelet
-    ``medg``) of lines (a, unit normal) with sample points at E-frame z = ``along`` (M, 2)."""
+    ``medg``) of lines (a, unit normal) with sample points at E-frame z = ``along`` (M, 2); an invalid
+    measurement's terms are zero."""
     m = mkf.shape[0]
     err = np.zeros((m, 2))
     Jp = np.zeros((m, 2, 6))
@@ -38,41 +86,9 @@ def edgelet_ba_terms(cam, poses, frames, mkf, medg, line_a, line_n, along):
     for k in range(m):
         T = poses[mkf[k]]
         E = frames[medg[k]]
-        nx = line_n[k, 0]
-        ny = line_n[k, 1]
-        # The edgelet's x- and y-axes in the camera frame.
-        xc0 = T[0, 0] * E[0, 0] + T[0, 1] * E[1, 0] + T[0, 2] * E[2, 0]
-        xc1 = T[1, 0] * E[0, 0] + T[1, 1] * E[1, 0] + T[1, 2] * E[2, 0]
-        xc2 = T[2, 0] * E[0, 0] + T[2, 1] * E[1, 0] + T[2, 2] * E[2, 0]
-        yc0 = T[0, 0] * E[0, 1] + T[0, 1] * E[1, 1] + T[0, 2] * E[2, 1]
-        yc1 = T[1, 0] * E[0, 1] + T[1, 1] * E[1, 1] + T[1, 2] * E[2, 1]
-        yc2 = T[2, 0] * E[0, 1] + T[2, 1] * E[1, 1] + T[2, 2] * E[2, 1]
         for s in range(2):
-            z = along[k, s]
-            wx = E[0, 3] + z * E[0, 2]
-            wy = E[1, 3] + z * E[1, 2]
-            wz = E[2, 3] + z * E[2, 2]
-            X = T[0, 0] * wx + T[0, 1] * wy + T[0, 2] * wz + T[0, 3]
-            Y = T[1, 0] * wx + T[1, 1] * wy + T[1, 2] * wz + T[1, 3]
-            Z = T[2, 0] * wx + T[2, 1] * wy + T[2, 2] * wz + T[2, 3]
-            if Z <= 0.0:
+            if sample_in_camera(T, E, along[k, s])[2] <= 0.0:
                 valid[k] = False
-                continue
-            u, v, _ = project_jac(cam, X, Y, Z, J)
-            err[k, s] = nx * (u - line_a[k, 0]) + ny * (v - line_a[k, 1])
-            g0 = nx * J[0, 0] + ny * J[1, 0]
-            g1 = nx * J[0, 1] + ny * J[1, 1]
-            g2 = nx * J[0, 2] + ny * J[1, 2]
-            Jp[k, s, 0] = g0
-            Jp[k, s, 1] = g1
-            Jp[k, s, 2] = g2
-            Jp[k, s, 3] = Y * g2 - Z * g1  # X_K × g
-            Jp[k, s, 4] = Z * g0 - X * g2
-            Jp[k, s, 5] = X * g1 - Y * g0
-            gx = g0 * xc0 + g1 * xc1 + g2 * xc2
-            gy = g0 * yc0 + g1 * yc1 + g2 * yc2
-            Je[k, s, 0] = gx
-            Je[k, s, 1] = gy
-            Je[k, s, 2] = -z * gy
-            Je[k, s, 3] = z * gx
+        if valid[k]:
+            measurement_rows(cam, T, E, along[k], line_a[k], line_n[k], J, Jp[k], Je[k], err[k])
     return err, Jp, Je, valid

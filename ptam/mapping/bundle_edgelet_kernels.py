@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit
 
 from ..camera.camproj_kernels import project, project_jac
+from ..edgelet.edgelet_ba_kernels import measurement_rows, sample_in_camera
 from .bundle_kernels import eliminate
 
 
@@ -55,19 +56,6 @@ def ba_edgelet_along(cam, poses, frames, mcam, medg, offset_px, along):
         along[k, 1] = z
 
 
-@njit(nogil=True, cache=True, inline="always")
-def _sample_in_camera(T, E, z):
-    """The sample point at E-frame z on the edgelet's axis, in the frame of pose T."""
-    wx = E[0, 3] + z * E[0, 2]
-    wy = E[1, 3] + z * E[1, 2]
-    wz = E[2, 3] + z * E[2, 2]
-    return (
-        T[0, 0] * wx + T[0, 1] * wy + T[0, 2] * wz + T[0, 3],
-        T[1, 0] * wx + T[1, 1] * wy + T[1, 2] * wz + T[1, 3],
-        T[2, 0] * wx + T[2, 1] * wy + T[2, 2] * wz + T[2, 3],
-    )
-
-
 @njit(nogil=True, cache=True)
 def ba_edgelet_residuals(cam, poses, frames, mcam, medg, line_a, line_n, along, use, err, e2, bad):
     """Eq. 7 for the measurements in ``use``: ε_n = m̂·(s_n − a) (M, 2) px, e2 = ε₁² + ε₂², bad = a sample point
@@ -82,7 +70,7 @@ def ba_edgelet_residuals(cam, poses, frames, mcam, medg, line_a, line_n, along, 
         T = poses[mcam[k]]
         E = frames[medg[k]]
         for s in range(2):
-            X, Y, Z = _sample_in_camera(T, E, along[k, s])
+            X, Y, Z = sample_in_camera(T, E, along[k, s])
             if Z <= 0.0:
                 bad[k] = True
                 break
@@ -93,38 +81,6 @@ def ba_edgelet_residuals(cam, poses, frames, mcam, medg, line_a, line_n, along, 
             err[k, 1] = 0.0
         else:
             e2[k] = err[k, 0] * err[k, 0] + err[k, 1] * err[k, 1]
-
-
-@njit(nogil=True, cache=True)
-def _measurement_rows(cam, T, E, z2, a, n, J, jp, je, r):
-    """One measurement's residuals r (2,) and Jacobian rows jp (2, 6), je (2, 4) (``edgelet_ba_terms``)."""
-    # The edgelet's x- and y-axes in the camera frame.
-    xc0 = T[0, 0] * E[0, 0] + T[0, 1] * E[1, 0] + T[0, 2] * E[2, 0]
-    xc1 = T[1, 0] * E[0, 0] + T[1, 1] * E[1, 0] + T[1, 2] * E[2, 0]
-    xc2 = T[2, 0] * E[0, 0] + T[2, 1] * E[1, 0] + T[2, 2] * E[2, 0]
-    yc0 = T[0, 0] * E[0, 1] + T[0, 1] * E[1, 1] + T[0, 2] * E[2, 1]
-    yc1 = T[1, 0] * E[0, 1] + T[1, 1] * E[1, 1] + T[1, 2] * E[2, 1]
-    yc2 = T[2, 0] * E[0, 1] + T[2, 1] * E[1, 1] + T[2, 2] * E[2, 1]
-    for s in range(2):
-        z = z2[s]
-        X, Y, Z = _sample_in_camera(T, E, z)
-        u, v, _ = project_jac(cam, X, Y, Z, J)
-        r[s] = n[0] * (u - a[0]) + n[1] * (v - a[1])
-        g0 = n[0] * J[0, 0] + n[1] * J[1, 0]
-        g1 = n[0] * J[0, 1] + n[1] * J[1, 1]
-        g2 = n[0] * J[0, 2] + n[1] * J[1, 2]
-        jp[s, 0] = g0
-        jp[s, 1] = g1
-        jp[s, 2] = g2
-        jp[s, 3] = Y * g2 - Z * g1
-        jp[s, 4] = Z * g0 - X * g2
-        jp[s, 5] = X * g1 - Y * g0
-        gx = g0 * xc0 + g1 * xc1 + g2 * xc2
-        gy = g0 * yc0 + g1 * yc1 + g2 * yc2
-        je[s, 0] = gx
-        je[s, 1] = gy
-        je[s, 2] = -z * gy
-        je[s, 3] = z * gx
 
 
 @njit(nogil=True, cache=True)
@@ -146,7 +102,7 @@ def ba_edgelet_linearise(cam, poses, frames, meas, use, e2, bad, c2, mrow, U, ea
         if not use[k] or bad[k] or e2[k] >= c2:
             continue
         live[k] = True
-        _measurement_rows(cam, poses[mcam[k]], frames[medg[k]], along[k], line_a[k], line_n[k], J, jp, je, res)
+        measurement_rows(cam, poses[mcam[k]], frames[medg[k]], along[k], line_a[k], line_n[k], J, jp, je, res)
         # Square root of the Tukey weight on the errors and the Jacobians, as for points (PTAM code).
         sw = 1.0 - e2[k] / c2
         _accumulate(jp, je, res, sw, medg[k], mrow[k], k, U, ea, V, eb, W)
