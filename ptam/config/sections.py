@@ -134,7 +134,7 @@ class InitConfig:
     max_trails: Annotated[int, Range("[1, inf)")]
     trail_half_patch: Annotated[int, Range("[1, inf)")]
     trail_search_radius_px: Annotated[int, Range("[1, inf)")]
-    trail_zero_mean: bool
+    trail_global_gain: bool
     trail_max_ssd: Annotated[int, Range("[0, inf)")]
     trail_backward_tolerance_px2: Annotated[int, Range("[0, inf)")]
     min_trails: Annotated[int, Range("[0, inf)")]

@@ -2,8 +2,9 @@
 
 PTAM code (``MiniPatch``): a (2h+1)² patch sampled at an integer pixel, compared by plain (not zero-mean)
 SSD at every FAST corner within a circular radius of a predicted position; the best one is a match when
-its SSD is below ``max_ssd``. With ``zero_mean`` the patches' mean difference is removed first (zero-mean SSD,
-as PTAM's own patch search, §5.3), so a change of exposure does not end the trails.
+its SSD is below ``max_ssd``. The template is scaled by ``gain`` first, the frame-wide brightness ratio of
+``dst`` to ``src`` (1 = PTAM's plain SSD), so a change of exposure does not end the trails while the SSD still
+tells patches of different brightness apart (a zero-mean SSD would not).
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from numba import njit
 
 
 @njit(nogil=True, cache=True)
-def minipatch_find(src, src_xy, dst, dst_xy, corners, row_lut, radius, half, max_ssd, zero_mean):
+def minipatch_find(src, src_xy, dst, dst_xy, corners, row_lut, radius, half, max_ssd, gain):
     """For each i: template at ``src_xy[i]`` in ``src``, searched in ``dst`` around ``dst_xy[i]``.
 
     Returns found (T, 2) int32 and ok (T,) bool. Ties keep the corner met first (row-major order).
@@ -24,7 +25,6 @@ def minipatch_find(src, src_xy, dst, dst_xy, corners, row_lut, radius, half, max
     found = np.zeros((n, 2), dtype=np.int32)
     ok = np.zeros(n, dtype=np.bool_)
     r2 = radius * radius
-    n_px = (2 * half + 1) * (2 * half + 1)
     for i in range(n):
         sx = src_xy[i, 0]
         sy = src_xy[i, 1]
@@ -48,27 +48,16 @@ def minipatch_find(src, src_xy, dst, dst_xy, corners, row_lut, radius, half, max
             dy = y - cy
             if dx * dx + dy * dy > r2:
                 continue
-            ssd = 0.0
-            if zero_mean:
-                s = 0
-                s2 = 0
-                for v in range(-half, half + 1):
-                    for u in range(-half, half + 1):
-                        d = np.int64(dst[y + v, x + u]) - np.int64(src[sy + v, sx + u])
-                        s += d
-                        s2 += d * d
-                ssd = s2 - s * s / n_px
-            else:
-                acc = 0
-                for v in range(-half, half + 1):
-                    for u in range(-half, half + 1):
-                        d = np.int64(dst[y + v, x + u]) - np.int64(src[sy + v, sx + u])
-                        acc += d * d
-                        if acc >= best:
-                            break
+            acc = 0.0
+            for v in range(-half, half + 1):
+                for u in range(-half, half + 1):
+                    d = float(dst[y + v, x + u]) - gain * float(src[sy + v, sx + u])
+                    acc += d * d
                     if acc >= best:
                         break
-                ssd = float(acc)
+                if acc >= best:
+                    break
+            ssd = acc
             if ssd < best:
                 best = ssd
                 bx = x

@@ -4,10 +4,16 @@ PTAM code (``Tracker::TrailTracking_Start/Advance``): up to 1000 maximal FAST co
 the best Shi-Tomasi scores start trails. Each frame, a trail's patch from the first keyframe is searched
 at FAST corners around the trail's last position; a backward search of the found patch in the previous
 frame must land within √2 px of where the trail was, or the trail is dropped.
+
+ptam: the searches compensate a frame-wide change of brightness (auto exposure, lighting; PTAM's plain SSD
+drops nearly every trail when the image brightens by 10 %): the gain of a frame against the first keyframe is
+the median ratio of the trails' patch means, measured on the previous frame for the forward search and on the
+matches found for the backward one. ``init.trail_global_gain: false`` is PTAM's plain SSD.
 """
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from ..image.fast import fast_corners
@@ -26,6 +32,10 @@ class TrailTracker:
         self.current_xy = np.zeros((0, 2), np.int32)
         self.ids = np.zeros(0, np.int64)  # each live trail's index among those started, to follow it across frames
         self.frames = 0
+        self.first_sums: np.ndarray | None = (
+            None  # the first keyframe's integral image, for the patch means of the gain
+        )
+        self.gain = 1.0  # brightness of the previous frame relative to the first keyframe
 
     @property
     def n_trails(self) -> int:
@@ -44,13 +54,26 @@ class TrailTracker:
         self.ids = np.arange(self.n_trails)
         self.first = self.previous = pyramid
         self.frames = 0
+        self.first_sums = cv2.integral(img) if self.cfg.trail_global_gain else None
+        self.gain = 1.0
         return self.n_trails
+
+    def _gain(self, sums: np.ndarray, xy: np.ndarray, start_xy: np.ndarray) -> float:
+        """Median over trails of (patch mean at ``xy`` in the frame of ``sums``) / (its mean in the first keyframe)."""
+        if len(xy) == 0 or self.first_sums is None:
+            return self.gain
+        h = self.cfg.trail_half_patch
+        num = patch_sums(sums, xy, h)
+        den = patch_sums(self.first_sums, start_xy, h)
+        valid = den > 0
+        return float(np.median(num[valid] / den[valid])) if valid.any() else self.gain
 
     def advance(self, pyramid: Pyramid) -> int:
         """Follow every trail into ``pyramid``; drops the trails that fail. Returns the number kept."""
         if self.first is None or self.previous is None or self.n_trails == 0:
             return 0
         c = self.cfg
+        sums = cv2.integral(pyramid.levels[0]) if c.trail_global_gain else None
         fwd, ok = minipatch_find(
             self.first.levels[0],
             self.start_xy,
@@ -61,8 +84,9 @@ class TrailTracker:
             c.trail_search_radius_px,
             c.trail_half_patch,
             c.trail_max_ssd,
-            c.trail_zero_mean,
+            self.gain,
         )
+        gain = self._gain(sums, fwd[ok], self.start_xy[ok]) if sums is not None else 1.0
         back, ok_b = minipatch_find(
             pyramid.levels[0],
             fwd,
@@ -73,7 +97,7 @@ class TrailTracker:
             c.trail_search_radius_px,
             c.trail_half_patch,
             c.trail_max_ssd,
-            c.trail_zero_mean,
+            self.gain / gain,
         )
         d2 = ((back - self.current_xy) ** 2).sum(axis=1)
         keep = ok & ok_b & (d2 <= c.trail_backward_tolerance_px2)
@@ -81,6 +105,7 @@ class TrailTracker:
         self.current_xy = fwd[keep]
         self.ids = self.ids[keep]
         self.previous = pyramid
+        self.gain = gain
         self.frames += 1
         return self.n_trails
 
@@ -88,3 +113,12 @@ class TrailTracker:
         if self.n_trails == 0:
             return 0.0
         return float(np.median(np.linalg.norm((self.current_xy - self.start_xy).astype(np.float64), axis=1)))
+
+
+def patch_sums(sums: np.ndarray, xy: np.ndarray, half: int) -> np.ndarray:
+    """Grey-level sums of the (2·half+1)² patches centred at integer ``xy``, from an integral image."""
+    x0 = xy[:, 0] - half
+    y0 = xy[:, 1] - half
+    x1 = xy[:, 0] + half + 1
+    y1 = xy[:, 1] + half + 1
+    return (sums[y1, x1] - sums[y0, x1] - sums[y1, x0] + sums[y0, x0]).astype(np.float64)

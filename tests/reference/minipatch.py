@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 
-def minipatch_find_ref(src, src_xy, dst, dst_xy, corners, radius, half, max_ssd, zero_mean=False):
+def minipatch_find_ref(src, src_xy, dst, dst_xy, corners, radius, half, max_ssd, gain=1.0):
     """Numpy reference: all corners × all templates, SSD by broadcasting."""
     n = len(src_xy)
     found = np.zeros((n, 2), dtype=np.int32)
@@ -17,20 +17,20 @@ def minipatch_find_ref(src, src_xy, dst, dst_xy, corners, radius, half, max_ssd,
     c = corners[cin]
     if len(c) == 0:
         return found, ok
-    cp = dst[c[:, 1][:, None, None] + off[None, :, None], c[:, 0][:, None, None] + off[None, None, :]].astype(np.int64)
+    cp = dst[c[:, 1][:, None, None] + off[None, :, None], c[:, 0][:, None, None] + off[None, None, :]].astype(
+        np.float64
+    )
     for i in range(n):
         sx, sy = src_xy[i]
         if sx < half or sy < half or sx >= ws - half or sy >= hs - half:
             continue
-        t = src[sy - half : sy + half + 1, sx - half : sx + half + 1].astype(np.int64)
+        t = gain * src[sy - half : sy + half + 1, sx - half : sx + half + 1].astype(np.float64)
         d2 = (c[:, 0] - dst_xy[i, 0]) ** 2 + (c[:, 1] - dst_xy[i, 1]) ** 2
         cand = d2 <= radius * radius
         if not cand.any():
             continue
         d = cp[cand] - t
-        ssd = (d**2).sum(axis=(1, 2)).astype(np.float64)
-        if zero_mean:
-            ssd = ssd - d.sum(axis=(1, 2)) ** 2 / d[0].size
+        ssd = (d**2).sum(axis=(1, 2))
         j = int(np.argmin(ssd))
         if ssd[j] < max_ssd:
             found[i] = c[cand][j]
