@@ -19,7 +19,7 @@ from ..geometry import se3
 from ..geometry.triangulation import triangulate_two_view
 from ..image.pyramid import level_to_zero, zero_to_level
 from ..patch.subpix_kernels import refine_subpix
-from ..patch.template_kernels import make_templates
+from ..patch.warp import unwarped_templates
 from .epipolar_kernels import epipolar_search
 
 if TYPE_CHECKING:
@@ -135,14 +135,6 @@ def _search_boxes(camera: CameraModel, seg: _Segments, level: int, band_px: floa
     return np.nan_to_num(box, nan=0.0).astype(np.int64)
 
 
-def _source_templates(src_pyr: Pyramid, level: int, level_xy: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
-    """The unwarped source patches centred on ``level_xy`` (pixels at ``level``), and which of them exist."""
-    n = len(level_xy)
-    src_stack = tuple(im[None] for im in src_pyr.levels)
-    eye = np.broadcast_to(np.eye(2), (n, 2, 2)).copy()
-    return make_templates(src_stack, np.zeros(n, np.int32), np.full(n, level, np.int8), level_xy, eye, size)
-
-
 def _search_target(
     camera: CameraModel,
     tgt_pyr: Pyramid,
@@ -218,7 +210,7 @@ def epipolar_matches(
     idx = np.flatnonzero(ok)
     if len(idx) == 0:
         return empty
-    templates, tok = _source_templates(src_pyr, level, cand_xy[idx], p.size)
+    templates, tok = unwarped_templates(src_pyr, level, cand_xy[idx], p.size)
     idx, templates = idx[tok], templates[tok]
     if len(idx) == 0:
         return empty

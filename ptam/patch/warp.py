@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .template_kernels import make_templates
 from .warp_kernels import RULES, warp_matrices
 
 
@@ -61,3 +62,12 @@ def template_matrices(A, level):
     M[:, 1, 0] = -A[:, 1, 0] * scale
     M[:, 1, 1] = A[:, 0, 0] * scale
     return M
+
+
+def unwarped_templates(pyr, level: int, level_xy: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Templates of ``pyr`` centred on ``level_xy`` (pixels at ``level``) with the identity warp (PTAM code
+    ``MakeTemplateCoarseNoWarp``), and which of them lie inside the image."""
+    n = len(level_xy)
+    stack = tuple(im[None] for im in pyr.levels)
+    eye = np.broadcast_to(np.eye(2), (n, 2, 2)).copy()
+    return make_templates(stack, np.zeros(n, np.int32), np.full(n, level, np.int8), level_xy, eye, size)
