@@ -99,6 +99,7 @@ class System(Initialisation):
         self._warm = False
         self._held: list[tuple[float, np.ndarray]] = []  # tracked while the initialisation frames are posed
         self._confirming: list[tuple[float, np.ndarray]] | None = None  # poses tracked since a relocalisation
+        self._good_streak = 0  # frames in a row tracked with good quality, up to this one
 
     def _build_in_background(self) -> bool:
         """The first map is built beside the tracker where frames keep coming (``realtime``); a file replayed in
@@ -223,14 +224,22 @@ class System(Initialisation):
         if res.lost and self.state != LOST:
             self.stats.lost_events += 1
         self.state = LOST if res.lost else _tracked_state(res)
+        self._good_streak = self._good_streak + 1 if self.state == TrackingState.GOOD else 0
         if not self.localize_only:
             m = res.measurements
             self.mapper.report_tracking(m.point_ids[m.found & m.inlier], m.point_ids[m.found & ~m.inlier])
-        T = res.T_cw if res.tracked else None
+        T = res.T_cw if self._reported(res) else None
         if T is not None:
             self._record([(res.timestamp, se3.inv(T))])
         added = self._maybe_add_keyframe(res)
         return FrameOutcome(res.frame_index, res.timestamp, self.state, T, res, added)
+
+    def _reported(self, res) -> bool:
+        """Whether a tracked frame's pose is reported (trajectory, AR, viewer). A poor frame (PTAM §5.6: found
+        fraction between the lost and good thresholds, PTAM's "dodgy") is tracked on, but its pose is withheld
+        unless ``system.report_poor_poses``: a wrong pose is worse than a lost frame, and on blurred footage half
+        the poor frames were more than 20 mm or 2° off against 1 % of the good ones (desk_blur)."""
+        return res.quality == Quality.GOOD or (res.tracked and self.cfg.system.report_poor_poses)
 
     def _confirm(self, res) -> FrameOutcome:
         """A relocalisation (Agility §7) counts only once the tracker confirms it: ``reloc.confirm_frames``
@@ -255,7 +264,10 @@ class System(Initialisation):
     def _maybe_add_keyframe(self, res) -> bool:
         """PTAM §6.2 (code ``Tracker::NeedNewKeyFrame`` + ``MapMaker::NeedNewKeyFrame``); frames of rapid motion
         are tracked but not used for map-building (Agility §10), nor are frames tracked from an approximate prior
-        (after a recovery or missed frames)."""
+        (after a recovery or missed frames), nor a good frame right after poor ones: its prior was a doubtful pose,
+        and the tracker can settle on a wrong pose that still finds texture (desk_blur: a keyframe 300 mm off, the
+        first good frame after ten poor ones). Trust is earned as a relocalisation's is: ``reloc.confirm_frames``
+        good frames in a row."""
         m = self.cfg.mapper
         kf = res.keyframe
         turned = self._view_turned(res)
@@ -270,6 +282,7 @@ class System(Initialisation):
             self.localize_only
             or res.rapid_motion
             or res.in_doubt
+            or self._good_streak < self.cfg.reloc.confirm_frames
             or not (
                 res.quality == Quality.GOOD
                 and self._spaced(kf.frames_since_keyframe, turned)
