@@ -238,8 +238,10 @@ class System(Initialisation):
         """Whether a tracked frame's pose is reported (trajectory, AR, viewer). A poor frame (PTAM §5.6: found
         fraction between the lost and good thresholds, PTAM's "dodgy") is tracked on, but its pose is withheld
         unless ``system.report_poor_poses``: a wrong pose is worse than a lost frame, and on blurred footage half
-        the poor frames were more than 20 mm or 2° off against 1 % of the good ones (desk_blur)."""
-        return res.quality == Quality.GOOD or (res.tracked and self.cfg.system.report_poor_poses)
+        the poor frames were more than 20 mm or 2° off against 1 % of the good ones (desk_blur). Under rapid
+        motion the pose is reported as PTAM reports it: failure detection is suspended there (Agility §8) and
+        the rotation estimator carries the pose through a saccade (§9.3)."""
+        return res.quality == Quality.GOOD or (res.tracked and (self.cfg.system.report_poor_poses or res.rapid_motion))
 
     def _confirm(self, res) -> FrameOutcome:
         """A relocalisation (Agility §7) counts only once the tracker confirms it: ``reloc.confirm_frames``
