@@ -119,12 +119,16 @@ def _run(d, cfg):
 @pytest.mark.slow
 def test_desk_blur_with_edgelets():
     """desk_blur: fast sideways sweeps over the mapped desk (30-50 px of image motion a frame, half-frame
-    exposure). Points alone track it too (the rotation estimator and the coarse stage hold on), so the
-    assertions are that edgelets are mapped, found in the blurred frames, and do not make tracking worse."""
+    exposure). Points alone lose the pose in the sweeps (poor frames, withheld, and some wrong ones); edgelets
+    with a wide search range join the coarse stage (Agility §8) and carry the pose through: markedly more
+    frames right, no wrong ones, and the trajectory stays millimetre-accurate."""
     d = sequence("desk_blur")
     on, system = _run(d, load_config(overrides=["edgelets.enabled=true"]))
     off, _ = _run(d, config())
     print(f"desk_blur correct fraction: edgelets {on.correct_fraction:.3f}, points only {off.correct_fraction:.3f}")
     print(f"desk_blur ATE: edgelets {1e3 * on.ate_rmse_m:.2f} mm, points only {1e3 * off.ate_rmse_m:.2f} mm")
+    print(f"desk_blur glitches: edgelets {on.glitches}, points only {off.glitches}")
     assert system.mapper.map.edgelets.n_total >= 30
-    assert on.correct_fraction >= max(off.correct_fraction - 0.01, 0.9)
+    assert on.correct_fraction >= max(off.correct_fraction + 0.08, 0.95)
+    assert on.glitches <= 1 and on.glitches <= off.glitches
+    assert 1e3 * on.ate_rmse_m < 5.0

@@ -9,6 +9,10 @@ their predicted normal (§5.1). γ_C is ``track_exposure_fraction`` of the frame
 frame's prior (the rotation estimator's, Agility §6, when it runs) and the motion model's translational
 velocity (the estimator drops translation from the prior, but translation blurs as well).
 
+Agility §8: edgelets whose search range is 20 px or more (``coarse_min_range_px``) join the coarse stage, measured
+from the prior and used with the coarse points in its pose update; the fine stage then measures every visible
+edgelet again from the updated pose (the coarse measurements served only to get there).
+
 A found edgelet is a perpendicular-distance measurement: the edge lies on the line through c + ε n̂ with
 normal n̂ (c, n̂ as predicted). The final pose uses points and edgelets in one Tukey IRLS
 (``pose_kernels.pose_irls_edgelets``); an edgelet's σ is ``track_sigma_px`` level-0 pixels (Agility §8: single-
@@ -78,9 +82,12 @@ class EdgeletTracker:
         self._cam = camera.kernel_params()
         self._blurs = table_blurs(cfg.edgelets).astype(np.float64)
 
-    def search(self, image: np.ndarray, snapshot: MapSnapshot | None, T_cw: np.ndarray, motion) -> EdgeletFrame:
+    def search(
+        self, image: np.ndarray, snapshot: MapSnapshot | None, T_cw: np.ndarray, motion, coarse: bool = False
+    ) -> EdgeletFrame:
         """§5.1–§5.2 for the visible edgelets of ``snapshot`` in the full-size ``image`` at pose ``T_cw``;
-        ``motion``: the tracker's ``MotionModel`` (this frame's prior and the velocity)."""
+        ``motion``: the tracker's ``MotionModel`` (this frame's prior and the velocity); ``coarse``: only those
+        with a search range of at least ``coarse_min_range_px`` (§8)."""
         if not self.ecfg.enabled or snapshot is None or not snapshot.edgelet_tables:
             return EdgeletFrame.empty()
         ids, table = self._table(snapshot, T_cw)
@@ -91,7 +98,8 @@ class EdgeletTracker:
         visible, radius, t_min = table.lookup(blur)
         h, w = image.shape
         inside = (p.centre[:, 0] >= 0) & (p.centre[:, 1] >= 0) & (p.centre[:, 0] <= w - 1) & (p.centre[:, 1] <= h - 1)
-        sel = np.flatnonzero(visible & p.valid & inside)
+        wide = radius >= self.ecfg.coarse_min_range_px if coarse else True
+        sel = np.flatnonzero(visible & p.valid & inside & wide)
         c, n = p.centre[sel], p.normal[sel]
         res = search_edgelets(image, c, n, blur[sel], radius[sel], t_min[sel], self.ecfg)
         xy = c + res.offset[:, None] * n
@@ -110,11 +118,13 @@ class EdgeletTracker:
         """Enough edgelets were found for the joint [R|t] update (see the module docstring)."""
         return frame.n_found >= self.ecfg.track_min_found
 
-    def final_pose(self, T_cw, X, Xw, xy, level, fixed_sigma: bool, frame: EdgeletFrame):
-        """The fine stage's final pose from points (X, Xw homogeneous, found at ``xy`` on ``level``) and the found
-        edgelets: (T_cw, point weights, the frame with its edgelet weights)."""
+    def final_pose(self, T_cw, X, Xw, xy, level, fixed_sigma: bool, frame: EdgeletFrame, coarse: bool = False):
+        """A pose from points (X, Xw homogeneous, found at ``xy`` on ``level``) and the found edgelets: the fine
+        stage's final one, or with ``coarse`` the coarse stage's (re-linearised every iteration, the coarse
+        Tukey override, as ``update_pose``): (T_cw, point weights, the frame with its edgelet weights)."""
         tcfg = self.cfg.tracker
-        override = tcfg.tukey_override_sigma_sq_fine if tcfg.tukey_override_enabled and fixed_sigma else 0.0
+        sigma_sq = tcfg.tukey_override_sigma_sq_coarse if coarse else tcfg.tukey_override_sigma_sq_fine
+        override = sigma_sq if tcfg.tukey_override_enabled and fixed_sigma else 0.0
         f = frame.found
         T, w, ew = pose_irls_edgelets(
             self._cam,
@@ -128,7 +138,7 @@ class EdgeletTracker:
             np.ascontiguousarray(frame.normal[f]),
             np.full(int(f.sum()), 1.0 / self.ecfg.track_sigma_px),
             int(tcfg.irls_iterations),
-            int(tcfg.relinearise_every),
+            1 if coarse else int(tcfg.relinearise_every),
             float(tcfg.min_tukey_sigma),
             float(tcfg.pose_prior),
             int(tcfg.tukey_override_after),

@@ -145,7 +145,8 @@ class Tracker:
 
     def _coarse_stage(self, pyramid, snapshot, cand, T, force: bool, batch, clock) -> tuple[np.ndarray, bool]:
         """PTAM §5.5; code: only with more than coarse_min_points candidates at the two coarsest levels, and a
-        pose update only when at least coarse_min_points of them were found."""
+        pose update only when at least coarse_min_points of them were found, or (Agility §8) enough edgelets
+        with a wide search range."""
         cfg = self.tcfg
         factor = cfg.recovery_coarse_factor if force else 1
         try_coarse = force or (
@@ -160,11 +161,18 @@ class Tracker:
         radius = cfg.coarse_radius_px * factor
         m = self._search(pyramid, snapshot, ids, level, cand.M[sel], cand.uv[sel], radius, np.ones(len(sel), bool))
         batch.add(ids, level, m, coarse=True)
+        edges = self.edgelets.search(pyramid.levels[0], snapshot, T, self.motion, coarse=True)  # Agility §8
         clock.lap(SEARCH)
-        did_coarse = bool(m.found.sum() >= cfg.coarse_min_points)
+        # Agility §8: edgelets measured with the coarse points count towards the update; blur that hides the
+        # coarse points leaves edges (Fig. 5).
+        did_coarse = bool(m.found.sum() >= cfg.coarse_min_points) or self.edgelets.usable(edges)
         if did_coarse:
             X, Xw = _features(snapshot, ids[m.found])
-            T, _ = update_pose(self._cam, cfg, T, X, m.xy[m.found], level[m.found], True, not self._rapid, Xw)
+            xy, lv = m.xy[m.found], level[m.found]
+            if self.edgelets.usable(edges):
+                T, _, _ = self.edgelets.final_pose(T, X, Xw, xy, lv, not self._rapid, edges, coarse=True)
+            else:
+                T, _ = update_pose(self._cam, cfg, T, X, xy, lv, True, not self._rapid, Xw)
         clock.lap(POSE)
         return T, did_coarse
 
