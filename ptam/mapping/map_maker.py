@@ -38,8 +38,11 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("ptam.mapper")
 
-# PTAM code (AddKeyFrameFromTopOfQueue): new points are sought at the coarsest level first, then fine to coarse.
-NEW_POINT_LEVEL_ORDER = (3, 0, 1, 2)
+
+def new_point_levels(n_levels: int) -> tuple[int, ...]:
+    """PTAM code (AddKeyFrameFromTopOfQueue): new points are sought at the coarsest level first, then fine to
+    coarse; (3, 0, 1, 2) for PTAM's four levels."""
+    return (n_levels - 1, *range(n_levels - 1))
 
 
 @dataclass(frozen=True)
@@ -194,7 +197,7 @@ class MapMaker:
         self.map.add_measurements(k, r.point_ids[good], r.xy[good], r.level[good], SRC_TRACKER)
         self._refind_in_keyframe(k, self._unmeasured_points(k))
         min_dist = self.cfg.mapper.candidate_min_dist_px
-        for level in NEW_POINT_LEVEL_ORDER:
+        for level in new_point_levels(self.cfg.image.levels):
             if r.panorama:
                 add_ray_points(self.map, self.camera, k, level, self.cfg.image, min_dist)
             else:

@@ -21,7 +21,7 @@ from ..map.map import SRC_ROOT, SRC_TRACKER
 from ..patch.subpix_kernels import refine_subpix
 from ..patch.warp import unwarped_templates
 from .dominant_plane import fit_dominant_plane, plane_aligner
-from .map_maker import NEW_POINT_LEVEL_ORDER, MapMaker
+from .map_maker import MapMaker, new_point_levels
 from .two_view import InitFailure, estimate_two_view
 
 
@@ -78,7 +78,7 @@ def init_from_stereo(mm: MapMaker, first, second, xy0: np.ndarray, xy1: np.ndarr
     m.add_measurements(1, ids, b, 0, SRC_TRACKER)
     mm.wiggle_depth_normalised = c.baseline_m / m.keyframes[0].scene_depth_mean
 
-    for level in NEW_POINT_LEVEL_ORDER:
+    for level in new_point_levels(mm.cfg.image.levels):
         mm.add_some_map_points(1, level)
     mm.recent_converged = mm.full_converged = False
     for _ in range(mm.cfg.init.max_ba_rounds):
