@@ -29,7 +29,7 @@ from .edgelet_mapping import integrate_keyframe, rebuild_visibility_tables
 from .epipolar import epipolar_matches, unit_plane_corners
 from .local_ba import local_sets
 from .normals import NormalEstimator
-from .panorama import add_ray_points, free_candidates
+from .panorama import add_ray_points, free_candidates, new_point_levels
 from .refind import refind_points
 
 if TYPE_CHECKING:
@@ -37,12 +37,6 @@ if TYPE_CHECKING:
     from ..config import Config
 
 log = logging.getLogger("ptam.mapper")
-
-
-def new_point_levels(n_levels: int) -> tuple[int, ...]:
-    """PTAM code (AddKeyFrameFromTopOfQueue): new points are sought at the coarsest level first, then fine to
-    coarse; (3, 0, 1, 2) for PTAM's four levels."""
-    return (n_levels - 1, *range(n_levels - 1))
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,12 @@ from ..image.shi_tomasi import candidates
 from ..map.map import SRC_ROOT, Map
 
 
+def new_point_levels(n_levels: int) -> tuple[int, ...]:
+    """PTAM code (AddKeyFrameFromTopOfQueue): new points are sought at the coarsest level first, then fine to
+    coarse; (3, 0, 1, 2) for PTAM's four levels."""
+    return (n_levels - 1, *range(n_levels - 1))
+
+
 def free_candidates(m: Map, k: int, level: int, image_cfg, min_dist_px: float) -> np.ndarray:
     """PTAM code ``ThinCandidates``: keyframe k's corner candidates on ``level`` (level pixels), without those
     within ``min_dist_px`` of its measurements on that level (a distance transform of the measured pixels

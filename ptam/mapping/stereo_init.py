@@ -21,7 +21,8 @@ from ..map.map import SRC_ROOT, SRC_TRACKER
 from ..patch.subpix_kernels import refine_subpix
 from ..patch.warp import unwarped_templates
 from .dominant_plane import fit_dominant_plane, plane_aligner
-from .map_maker import MapMaker, new_point_levels
+from .map_maker import MapMaker
+from .panorama import new_point_levels
 from .two_view import InitFailure, estimate_two_view
 
 
