@@ -165,11 +165,12 @@ class Tracker:
         clock.lap(SEARCH)
         # Agility §8: edgelets measured with the coarse points count towards the update; blur that hides the
         # coarse points leaves edges (Fig. 5).
-        did_coarse = bool(m.found.sum() >= cfg.coarse_min_points) or self.edgelets.usable(edges)
+        with_edges = self.edgelets.usable(edges)
+        did_coarse = bool(m.found.sum() >= cfg.coarse_min_points) or with_edges
         if did_coarse:
             X, Xw = _features(snapshot, ids[m.found])
             xy, lv = m.xy[m.found], level[m.found]
-            if self.edgelets.usable(edges):
+            if with_edges:
                 T, _, _ = self.edgelets.final_pose(T, X, Xw, xy, lv, not self._rapid, edges, coarse=True)
             else:
                 T, _ = update_pose(self._cam, cfg, T, X, xy, lv, True, not self._rapid, Xw)

@@ -32,9 +32,7 @@ class TrailTracker:
         self.current_xy = np.zeros((0, 2), np.int32)
         self.ids = np.zeros(0, np.int64)  # each live trail's index among those started, to follow it across frames
         self.frames = 0
-        self.first_sums: np.ndarray | None = (
-            None  # the first keyframe's integral image, for the patch means of the gain
-        )
+        self.first_sums = np.zeros(0)  # each live trail's patch sum in the first keyframe, for the gain
         self.gain = 1.0  # brightness of the previous frame relative to the first keyframe
 
     @property
@@ -54,17 +52,17 @@ class TrailTracker:
         self.ids = np.arange(self.n_trails)
         self.first = self.previous = pyramid
         self.frames = 0
-        self.first_sums = cv2.integral(img) if self.cfg.trail_global_gain else None
+        self.first_sums = patch_sums(cv2.integral(img), self.start_xy, h)
         self.gain = 1.0
         return self.n_trails
 
-    def _gain(self, sums: np.ndarray, xy: np.ndarray, start_xy: np.ndarray) -> float:
-        """Median over trails of (patch mean at ``xy`` in the frame of ``sums``) / (its mean in the first keyframe)."""
-        if len(xy) == 0 or self.first_sums is None:
+    def _gain(self, sums: np.ndarray, xy: np.ndarray, found: np.ndarray) -> float:
+        """Median over the ``found`` trails of (patch mean at ``xy`` in the frame of ``sums``) / (its mean in the
+        first keyframe)."""
+        if not found.any():
             return self.gain
-        h = self.cfg.trail_half_patch
-        num = patch_sums(sums, xy, h)
-        den = patch_sums(self.first_sums, start_xy, h)
+        num = patch_sums(sums, xy[found], self.cfg.trail_half_patch)
+        den = self.first_sums[found]
         valid = den > 0
         return float(np.median(num[valid] / den[valid])) if valid.any() else self.gain
 
@@ -86,7 +84,7 @@ class TrailTracker:
             c.trail_max_ssd,
             self.gain,
         )
-        gain = self._gain(sums, fwd[ok], self.start_xy[ok]) if sums is not None else 1.0
+        gain = self._gain(sums, fwd, ok) if sums is not None else 1.0
         back, ok_b = minipatch_find(
             pyramid.levels[0],
             fwd,
@@ -102,6 +100,7 @@ class TrailTracker:
         d2 = ((back - self.current_xy) ** 2).sum(axis=1)
         keep = ok & ok_b & (d2 <= c.trail_backward_tolerance_px2)
         self.start_xy = self.start_xy[keep]
+        self.first_sums = self.first_sums[keep]
         self.current_xy = fwd[keep]
         self.ids = self.ids[keep]
         self.previous = pyramid
