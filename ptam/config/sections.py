@@ -23,6 +23,7 @@ from .edgelet_section import EdgeletConfig
 from .interval import Range
 from .model_section import ModelSelectionConfig
 from .normals_section import NormalsConfig
+from .tracks_section import TracksConfig
 
 __all__ = [
     "ArConfig",
@@ -33,6 +34,7 @@ __all__ = [
     "NormalsConfig",
     "Range",
     "SynthCalibrationConfig",
+    "TracksConfig",
     "ViewerConfig",
 ]
 
@@ -253,6 +255,7 @@ class Config:
     model_selection: ModelSelectionConfig
     edgelets: EdgeletConfig
     normals: NormalsConfig
+    tracks: TracksConfig
 
     def replace(self, **changes: str) -> Config:
         """A copy with ``section.key`` values changed, e.g. ``cfg.replace(**{"tracker.max_patches": 500})``."""

@@ -1,0 +1,135 @@
+"""When the tracker hands a frame to the mapper as a keyframe (PTAM §6.2, Gauglitz et al. §4.3), and the wait
+for the mapper on a replayed file."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+
+from ..camera.model import CameraModel
+from ..config import Config
+from ..geometry import se3
+from ..mapping.map_maker import KeyframeRequest, MapMaker
+from ..tracking.tracker import Tracker
+from ..vocabulary import PoseModel, Quality, RunMode
+from .run_stats import RunStats
+
+
+class KeyframePolicy:
+    """Mixed into :class:`~ptam.system.core.System`, whose state it uses (declared here for the type checker)."""
+
+    camera: CameraModel
+    cfg: Config
+    mode: RunMode
+    localize_only: bool
+    mapper: MapMaker
+    tracker: Tracker
+    stats: RunStats
+    _good_streak: int
+    _wake: threading.Event
+    _stepped: threading.Event
+    _mapper_error: BaseException | None
+    _thread: threading.Thread | None
+
+    def _maybe_add_keyframe(self, res) -> bool:
+        """PTAM §6.2 (code ``Tracker::NeedNewKeyFrame`` + ``MapMaker::NeedNewKeyFrame``); frames of rapid motion
+        are tracked but not used for map-building (Agility §10), nor are frames tracked from an approximate prior
+        (after a recovery or missed frames), nor a good frame right after poor ones: its prior was a doubtful pose,
+        and the tracker can settle on a wrong pose that still finds texture (desk_blur: a keyframe 300 mm off, the
+        first good frame after ten poor ones). Trust is earned as a relocalisation's is: ``reloc.confirm_frames``
+        good frames in a row."""
+        m = self.cfg.mapper
+        kf = res.keyframe
+        turned = self._view_turned(res)
+        panorama = turned and res.pose_model == PoseModel.ROTATION
+        if panorama:  # Gauglitz et al. §4.3: the keyframe's kind follows the model; [R|0] has no baseline
+            due = True
+        elif res.pose_model == PoseModel.ROTATION:
+            due = False
+        else:
+            due = turned or self.mapper.need_new_keyframe(kf.nearest_keyframe_distance, kf.mean_scene_depth)
+        if (
+            self.localize_only
+            or res.rapid_motion
+            or res.in_doubt
+            or self._good_streak < self.cfg.reloc.confirm_frames
+            or not (
+                res.quality == Quality.GOOD
+                and self._spaced(kf.frames_since_keyframe, turned)
+                and self.mapper.queue_size() < m.kf_max_queue
+                and due
+            )
+        ):
+            return False
+        meas = res.measurements
+        f = meas.found
+        self.mapper.add_keyframe(
+            KeyframeRequest(
+                res.pyramid,
+                self._about_parent(res.T_cw) if panorama else res.T_cw.copy(),
+                res.timestamp,
+                meas.point_ids[f],
+                meas.xy[f],
+                meas.level[f],
+                kf.mean_scene_depth,
+                kf.scene_depth_sigma,
+                panorama=panorama,
+            )
+        )
+        self.tracker.keyframe_added()
+        self.stats.keyframes_requested += 1
+        if self.mode == RunMode.SYNC:
+            self.mapper.run_until_idle()
+        else:
+            self._wake.set()
+            if self.mode == RunMode.ASYNC and self.cfg.system.async_waits_for_local_ba:
+                self._wait_for_mapper()
+        return True
+
+    def _spaced(self, frames_since_keyframe: int, turned: bool) -> bool:
+        """Enough time since the last keyframe: PTAM §6.2's twenty frames; or, for a view turning away from every
+        keyframe (Gauglitz et al. §4.3 condition 3, whose condition 2 gives no time), the image travel itself once
+        the mapper has integrated the previous keyframe (the travel is measured against the snapshot's keyframes)
+        and adjusted it locally (the next one is placed against a refined map, at the pace the mapper keeps). A
+        turn at hand-held speed leaves the map within twenty frames (desk_corner: 15)."""
+        if frames_since_keyframe > self.cfg.mapper.kf_min_frames:
+            return True
+        ms = self.cfg.model_selection
+        return turned and ms.turn_keyframes_unspaced and self.mapper.keyframes_settled()
+
+    def _about_parent(self, T_cw: np.ndarray) -> np.ndarray:
+        """A panorama keyframe's pose. Its rotation was estimated about the nearest keyframe's centre: when that
+        is a panorama keyframe, the new one takes its centre exactly (Gauglitz et al. §4.3, [R|t]_prev ∘ [R|0]),
+        so a panorama group shares one centre instead of drifting by up to t_max per keyframe; the first of a
+        group keeps the centre tracked against the 3-D map."""
+        snap = self.mapper.snapshot
+        assert snap is not None  # a keyframe is only requested against a map
+        d = np.linalg.norm(snap.camera_centres - se3.inv(T_cw)[:3, 3], axis=1)
+        nearest = int(np.argmin(d))
+        if not snap.keyframes[nearest].panorama:
+            return T_cw.copy()
+        T = T_cw.copy()
+        T[:3, 3] = -T[:3, :3] @ snap.camera_centres[nearest]
+        return T
+
+    def _view_turned(self, res) -> bool:
+        """Gauglitz et al. §4.3, condition 3 for rotation-only motion: the view has travelled far enough from every
+        keyframe's (``model_selection.panorama_kf_travel`` of the image width). Under [R|0] the keyframe is a
+        panorama keyframe; under [R|t] (the camera has also moved beyond t_max) an SfM keyframe, whose baseline
+        lets the map grow where the camera now looks."""
+        ms = self.cfg.model_selection
+        return ms.enabled and res.keyframe.view_travel_px > ms.panorama_kf_travel * self.camera.width
+
+    def _wait_for_mapper(self) -> None:
+        """``async`` on a recorded source: the tracker would otherwise run several times faster than real time,
+        far ahead of a map that is not extended yet. It waits until the mapper has integrated the keyframe and
+        adjusted it locally (PTAM §6.3), then runs on beside the global adjustment and the data-association
+        refinement; ``realtime`` (live) never waits."""
+        deadline = time.perf_counter() + self.cfg.system.mapper_wait_max_s
+        while (self.mapper.queue or not self.mapper.recent_converged) and time.perf_counter() < deadline:
+            if self._mapper_error is not None or self._thread is None:
+                return
+            self._stepped.wait(self.cfg.system.mapper_idle_wait_s)
+            self._stepped.clear()
