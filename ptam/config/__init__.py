@@ -17,7 +17,6 @@ from .sections import (
     MapperConfig,
     ModelSelectionConfig,
     NormalsConfig,
-    TracksConfig,
     PatchConfig,
     RelocConfig,
     RotationConfig,
@@ -25,6 +24,7 @@ from .sections import (
     SyntheticConfig,
     SystemConfig,
     TrackerConfig,
+    TracksConfig,
     ViewerConfig,
 )
 

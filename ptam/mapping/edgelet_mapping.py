@@ -119,12 +119,13 @@ def _record(m: Map, cfg: Config, k: int, ids: np.ndarray, a: np.ndarray, b: np.n
     m.add_edgelet_table_rows(k, ids, t.visible, t.r_search, t.t_min, t.max_blur)
 
 
-def rebuild_visibility_tables(m: Map, cfg: Config) -> None:
-    """§5.2's tables of a map without them (read from a map file: they derive from the keyframe images and the
-    edgelet measurements, with the current config's blur lengths)."""
+def rebuild_visibility_tables(m: Map, cfg: Config, first_kf: int = 0) -> None:
+    """§5.2's tables of keyframes ``first_kf`` on, which have none (read from a map file, or merged from another
+    track: they derive from the keyframe images and the edgelet measurements, with the current config's blur
+    lengths)."""
     st = m.edgelets
     kf = st.view("meas_kf")
-    for k in np.unique(kf).tolist():  # one table per keyframe
+    for k in np.unique(kf[kf >= first_kf]).tolist():  # one table per keyframe
         sel = kf == k
         t = build_visibility_table(_image(m, k), st.view("meas_a")[sel], perp(st.view("meas_b")[sel]), cfg.edgelets)
         m.add_edgelet_table_rows(k, st.view("meas_edgelet")[sel], t.visible, t.r_search, t.t_min, t.max_blur)

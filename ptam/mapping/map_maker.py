@@ -82,8 +82,8 @@ class MapMaker:
         # mdWiggleScaleDepthNormalized).
         self.wiggle_depth_normalised = 0.0
         # ba_running: "local" or "global" while a bundle adjustment runs, else None (read by the viewer).
-        self.stats: dict[str, Any] = {"local_ba": [], "global_ba": [], "keyframes_added": 0, "ba_running": None}
-        self.stats["panorama_keyframes_added"] = 0
+        self.stats: dict[str, Any] = {"local_ba": [], "global_ba": [], "ba_running": None}
+        self.stats.update(keyframes_added=0, panorama_keyframes_added=0)
         self.ready = False  # set once a usable map exists; the mapper thread idles until then
         self.reset_requested = False  # the map is corrupt; the system starts again (PTAM code)
         if len(self.map.keyframes):
@@ -110,6 +110,10 @@ class MapMaker:
     def add_keyframe(self, request: KeyframeRequest) -> None:
         self._handed_over += 1
         self.queue.append(request)
+
+    def queue_refind(self, point_ids: np.ndarray, first_kf: int) -> None:
+        """Search points in keyframes ``first_kf`` on in the background, as newly made ones are (merged tracks)."""
+        self._new_points.append((np.asarray(point_ids, np.int64), first_kf))
 
     def keyframes_settled(self) -> bool:
         """Every keyframe handed over is in the published snapshot and locally adjusted (PTAM §6.3)."""
@@ -197,7 +201,7 @@ class MapMaker:
             else:
                 self.add_some_map_points(k, level)
         if self.cfg.edgelets.enabled and not r.panorama:  # Agility §4.3
-            job = integrate_keyframe(self.map, self.camera, self.cfg, k, self.closest_keyframe(k))
+            job = integrate_keyframe(self.map, self.camera, self.cfg, k, self.map.nearest_with_baseline(k))
             self.stats.setdefault("edgelet_jobs", []).append(job)
         self.recent_converged = self.full_converged = False
         self._integrated += 1
@@ -212,10 +216,6 @@ class MapMaker:
     def _unmeasured_points(self, k: int) -> np.ndarray:
         return np.flatnonzero(~self._measured_in(k) & ~self.map.bad)
 
-    def closest_keyframe(self, k: int) -> int:
-        """The nearest keyframe by camera centre with a baseline to k: panorama keyframes have none."""
-        return self.map.nearest_with_baseline(k)
-
     def add_some_map_points(self, k: int, level: int) -> int:
         """PTAM code ``AddSomeMapPoints``: thinned candidates of keyframe k, epipolar search in the closest."""
         m = self.map
@@ -223,7 +223,7 @@ class MapMaker:
         xy = free_candidates(m, k, level, self.cfg.image, self.cfg.mapper.candidate_min_dist_px)
         if len(xy) == 0:
             return 0
-        t = self.closest_keyframe(k)
+        t = self.map.nearest_with_baseline(k)
         key = (t, level)
         if key not in self._plane_corners:
             self._plane_corners[key] = unit_plane_corners(self.camera, m.keyframes[t].pyramid, level)

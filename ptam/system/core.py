@@ -44,6 +44,7 @@ from .initialisation import Initialisation
 from .keyframe_policy import KeyframePolicy
 from .run_stats import RunStats
 from .stereo_start import StereoStart
+from .tracks import Tracks
 from .warm_up import warm_up
 
 log = logging.getLogger("ptam")
@@ -55,7 +56,7 @@ def _tracked_state(res) -> TrackingState:
     return TrackingState.GOOD if res.quality == Quality.GOOD else TrackingState.POOR
 
 
-class System(Initialisation, KeyframePolicy):
+class System(Initialisation, KeyframePolicy, Tracks):
     """``map_``: start from an existing map (e.g. loaded from a file) instead of initialising; the tracker starts
     at its first keyframe with the coarse stage forced. ``localize_only``: track against the map without adding
     keyframes (the mapper never runs). ``observers``: callables ``f(outcome, system)`` run after every frame in
@@ -83,6 +84,7 @@ class System(Initialisation, KeyframePolicy):
         self.tracker = Tracker(camera, cfg)
         self.relocaliser = Relocaliser(camera, cfg)
         self.mapper = MapMaker(camera, cfg, map_)
+        self._init_tracks()
         self._init = StereoStart(camera, cfg, background=self._build_in_background())
         self.state = INITIALISING
         self.observers: list = []
@@ -124,7 +126,7 @@ class System(Initialisation, KeyframePolicy):
     def _mapper_loop(self) -> None:
         try:
             while not self._stop.is_set():
-                if not self.mapper.step():
+                if not self.mapper.step() and not self._merge_tracks():
                     self._wake.wait(self.cfg.system.mapper_idle_wait_s)
                     self._wake.clear()
                 self._stepped.set()
@@ -148,6 +150,7 @@ class System(Initialisation, KeyframePolicy):
             self._thread.join()
             self._thread = None
         self._check_mapper()
+        self._settle_tracks()
 
     def __enter__(self) -> System:
         return self.start()
@@ -182,6 +185,7 @@ class System(Initialisation, KeyframePolicy):
         self.state = INITIALISING
         self.trajectory = []
         self._key_pressed = False
+        self._reset_tracks()
         if restart:
             self.start()
 
@@ -190,7 +194,8 @@ class System(Initialisation, KeyframePolicy):
         self._check_mapper()
         t0 = time.perf_counter()
         self.stats.frames += 1
-        out = self._track(frame) if self.mapper.initialised else self._initialise(frame)
+        self._apply_merges()
+        out = self._track(frame) if self.mapper.initialised else self._without_map(frame)
         if self._init.posing:
             self._collect_posed()
         if self.mapper.reset_requested:  # PTAM code: a bundle adjustment that cannot be solved ditches the map
@@ -202,13 +207,15 @@ class System(Initialisation, KeyframePolicy):
             observe(out, self)
         return out
 
-    def _track(self, frame) -> FrameOutcome:
+    def _track(self, frame, pyramid: Pyramid | None = None) -> FrameOutcome:
         snapshot = self.mapper.snapshot
         index, ts = int(frame.index), float(frame.timestamp)
+        lost = self.state in (LOST, RELOCALISING) and self._confirming is None
+        if lost and self._new_track_on_loss():  # Gauglitz §4.4
+            return self._lose_track(frame, Pyramid.build(frame.image, self.cfg.image))
         relocalising = self.state in (LOST, RELOCALISING) and self.cfg.reloc.enabled
         if self.cfg.reloc.enabled:
             self.relocaliser.sync(snapshot)  # keyframe descriptors as keyframes appear, not all at the first loss
-        pyramid = None
         if relocalising and self._confirming is None:
             pyramid = Pyramid.build(frame.image, self.cfg.image)
             reloc = self.relocaliser.attempt(pyramid, snapshot)

@@ -41,11 +41,12 @@ class Initialisation:
     _held: list[tuple[float, np.ndarray]]
     _wake: threading.Event
 
-    def _initialise(self, frame) -> FrameOutcome:
+    def _initialise(self, frame, pyramid: Pyramid | None = None) -> FrameOutcome:
         index, ts = int(frame.index), float(frame.timestamp)
         idle = FrameOutcome(index, ts, INITIALISING, None)
         key, self._key_pressed = self._key_pressed, False
-        pyramid = Pyramid.build(frame.image, self.cfg.image)
+        if pyramid is None:
+            pyramid = Pyramid.build(frame.image, self.cfg.image)
         init = self._init
         if not init.started:
             fixed = self.init_frames
@@ -100,6 +101,7 @@ class Initialisation:
             self._init_failed(self._init.trails.previous, index, ts, built.failure)
             return FrameOutcome(index, ts, INITIALISING, None)
         self.mapper = built.mapper
+        self.stats.tracks_created += 1
         log.info("map initialised from frames %d and %d: %d points", built.first[0], built.second[0],
                  self.mapper.map.n_points_total)  # fmt: skip
         newest, T_newest = self._init.adopt(built)

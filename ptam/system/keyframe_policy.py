@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import threading
 import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -32,6 +33,10 @@ class KeyframePolicy:
     _stepped: threading.Event
     _mapper_error: BaseException | None
     _thread: threading.Thread | None
+
+    if TYPE_CHECKING:  # defined by the Tracks mixin
+
+        def _merge_tracks(self) -> bool: ...
 
     def _maybe_add_keyframe(self, res) -> bool:
         """PTAM §6.2 (code ``Tracker::NeedNewKeyFrame`` + ``MapMaker::NeedNewKeyFrame``); frames of rapid motion
@@ -82,6 +87,8 @@ class KeyframePolicy:
         self.stats.keyframes_requested += 1
         if self.mode == RunMode.SYNC:
             self.mapper.run_until_idle()
+            while self._merge_tracks():  # Gauglitz §5.3, where async mode's mapper would do it: when idle
+                self.mapper.run_until_idle()
         else:
             self._wake.set()
             if self.mode == RunMode.ASYNC and self.cfg.system.async_waits_for_local_ba:

@@ -52,6 +52,8 @@ class RunStats:
     reloc_attempts: int = 0
     keyframes_requested: int = 0
     init_attempts: int = 0
+    tracks_created: int = 0  # maps built by initialisation: the first track and each new one (Gauglitz §4.4)
+    tracks_merged: int = 0  # ... merged into another (§5.3)
     init_failures: deque = field(default_factory=lambda: deque(maxlen=100))  # the latest reasons
     track_ms: Latency = field(init=False)
 
