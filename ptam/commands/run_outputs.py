@@ -116,6 +116,12 @@ def write_trajectory(path: str, trajectory: list) -> None:
     atomic_write(path, lambda tmp: write_tum(tmp, t[order], T[order], header=TRAJECTORY_HEADER))
 
 
+def track_path(path: str, track: int) -> str:
+    """Where the poses of a track not merged into the largest go: ``traj.txt`` -> ``traj.track2.txt``."""
+    root, ext = os.path.splitext(path)
+    return f"{root}.track{track}{ext}"
+
+
 def write_keyframes(path: str, snap) -> None:
     if snap is None or snap.n_keyframes == 0:
         atomic_write(path, lambda tmp: write_tum(tmp, np.zeros(0), np.zeros((0, 4, 4)), header="ptam keyframes (none)"))
@@ -239,7 +245,7 @@ class TrajectoryStream:
         """The last flush; the file is rewritten (atomically) only if it does not hold the whole trajectory."""
         self.flush()
         self.release()
-        if self.error is not None or self.written != len(trajectory):
+        if self.error is not None or self.written != len(trajectory) or trajectory is not self._list:
             write_trajectory(self.path, trajectory)
         else:
             fsync_directory(self.path)
@@ -338,10 +344,14 @@ class RunOutputs:
         return failures
 
     def _finish_trajectory(self, system) -> None:
+        """The largest track's poses (Gauglitz §4.4: tracks merged into it included); each track that was never
+        merged into it goes to a file of its own beside it, in its own frame and scale (:func:`track_path`)."""
         if self.stream is None:
             write_trajectory(self.trajectory_path, system.trajectory)
         else:
             self.stream.close(system.trajectory)
+        for track, poses in system.other_tracks.items():
+            write_trajectory(track_path(self.trajectory_path, track), poses)
 
     def _finish_map(self, snap) -> None:
         if snap is None or snap.n_keyframes == 0:

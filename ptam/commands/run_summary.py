@@ -42,3 +42,10 @@ def print_summary(system, mode: str, dropped: int | None, viewer=None, checkpoin
     if checkpoints:
         line += f"  checkpoints {checkpoints}"
     print(line)
+    if s.tracks_created > 1:  # Gauglitz §4.4-§5.3
+        others = system.other_tracks
+        print(
+            f"tracks {s.tracks_created}, merged {s.tracks_merged}; the trajectory holds the largest "
+            f"({len(system.trajectory)} frames)"
+            + (f", {len(others)} unmerged with {sum(map(len, others.values()))} frames" if others else "")
+        )

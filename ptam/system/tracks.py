@@ -112,7 +112,6 @@ class Tracks:
         self.relocaliser = Relocaliser(self.camera, self.cfg)
         self._init.close()
         self._init = StereoStart(self.camera, self.cfg, background=self._build_in_background())
-        self.tracker.reset()
         self.state = TrackingState.INITIALISING
         self._confirming = None
         self._candidate = None
@@ -124,11 +123,15 @@ class Tracks:
         initialising beside it until the relocalisation is confirmed), else initialising."""
         if pyramid is None:
             pyramid = Pyramid.build(frame.image, self.cfg.image)
-        if self._dormant and self.cfg.reloc.enabled:
+        relocalising = bool(self._dormant) and self.cfg.reloc.enabled
+        if relocalising:
             out = self._candidate_frame(frame, pyramid)
             if out is not None:
                 return out
-        return self._initialise(frame, pyramid)
+        out = self._initialise(frame, pyramid)
+        if relocalising and out.state == TrackingState.INITIALISING:
+            out.state = TrackingState.RELOCALISING  # what the user sees: the set-aside tracks are still sought
+        return out
 
     def _candidate_frame(self, frame, pyramid: Pyramid) -> FrameOutcome | None:
         """Agility §7 into the set-aside tracks: the best accepted relocalisation becomes a candidate, tracked
@@ -215,6 +218,11 @@ class Tracks:
         self.other_tracks = {}
 
     # -- the mapper's thread (the tracker's in sync mode) -----------------------------------------------
+    def _step_set_aside(self) -> bool:
+        """One unit of a set-aside track's mapping work (Gauglitz §5: the background thread serves every track),
+        once the current track's mapper is idle; False when none has any."""
+        return any(t.mapper.step() for t in tuple(self._dormant.values()))
+
     def _merge_tracks(self) -> bool:
         """One step of the search for an overlap with a set-aside track (Gauglitz §5.3), and the merge if one is
         found; False when there was nothing to try."""
