@@ -128,6 +128,13 @@ class StereoStart:
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
 
+    def abandon(self) -> None:
+        """Drop this initialisation, a map being built included, without waiting for the worker."""
+        self.stop()
+        self._job = self._posing = None
+        if self._pool is not None:
+            self._pool.shutdown(wait=False, cancel_futures=True)
+
     # -- posing the remembered frames ---------------------------------------------------------------------
     def adopt(self, built: Built) -> tuple[TrailFrame, np.ndarray | None]:
         """The newest remembered frame and its pose (None if PnP fails), computed now so tracking resumes from it;

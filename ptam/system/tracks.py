@@ -91,6 +91,11 @@ class Tracks:
         self._candidate: tuple[Track, list] | None = None  # a relocalisation into a set-aside track, confirming
 
     @property
+    def track_mappers(self) -> dict[int, MapMaker]:
+        """Every track's mapper (and map) by track id: the current one and those set aside."""
+        return {**{t.id: t.mapper for t in tuple(self._dormant.values())}, self.track_id: self.mapper}
+
+    @property
     def n_tracks(self) -> int:
         """Tracks with a map: the current one and those set aside."""
         return len(self._dormant) + int(self.mapper.initialised)
@@ -110,7 +115,7 @@ class Tracks:
             self.mapper = MapMaker(self.camera, self.cfg)
         self.trajectory = []
         self.relocaliser = Relocaliser(self.camera, self.cfg)
-        self._init.close()
+        self._init.abandon()
         self._init = StereoStart(self.camera, self.cfg, background=self._build_in_background())
         self.state = TrackingState.INITIALISING
         self._confirming = None
@@ -177,7 +182,8 @@ class Tracks:
                 self._dormant[self.track_id] = Track(self.track_id, self.mapper, self.trajectory, self.relocaliser)
             self.track_id, self.mapper = t.id, t.mapper
         self.trajectory, self.relocaliser = t.poses, t.relocaliser
-        self._init.stop()
+        self._init.abandon()  # the new track's initialisation, if any, is dropped with it
+        self._init = StereoStart(self.camera, self.cfg, background=self._build_in_background())
         return True
 
     def _apply_merges(self) -> None:

@@ -70,6 +70,8 @@ class _Item:
     trails: tuple | None  # (start_xy, current_xy) while initialising
     mapper_queue: int
     ba_running: str | None
+    track: int = 0  # the current track and the merges so far (Gauglitz et al. §4.4, §5.3)
+    merged: int = 0
 
 
 class Viewer:
@@ -95,6 +97,7 @@ class Viewer:
         self._traj_n = 0
         self._state: str | None = None
         self._grid = False
+        self._tracks = (0, 0)  # (current track, merges) last logged
         self._error: BaseException | None = None
         self._log_static()
         self._thread = threading.Thread(target=self._run, name="ptam-viewer", daemon=True)
@@ -123,6 +126,8 @@ class Viewer:
             trails,
             system.mapper.queue_size(),
             system.mapper.stats.get("ba_running"),
+            system.track_id,
+            system.stats.tracks_merged,
         )
 
     @property
@@ -341,3 +346,8 @@ class Viewer:
         self._emit("plots/keyframes/keyframes", rr.Scalars(snap.n_keyframes if snap is not None else 0))
         self._emit("plots/mapper/queue", rr.Scalars(item.mapper_queue))
         self._emit("plots/mapper/bundle_adjustment", rr.Scalars(_BA_CODES.get(item.ba_running, 0)))
+        self._emit("plots/tracks/current", rr.Scalars(item.track))
+        if (item.track, item.merged) != self._tracks:  # the map shown is another track's, or grew by a merge
+            what = "merged into" if item.merged > self._tracks[1] else "now"
+            self._emit("events", rr.TextLog(f"{what} track {item.track} ({item.merged} merges so far)"))
+            self._tracks = (item.track, item.merged)
