@@ -86,3 +86,44 @@ def test_a_new_track_after_a_loss_is_merged_when_the_first_area_is_seen_again(cf
     assert s.glitches == 0 and r.glitches == 0
     assert s.ate_rmse_m <= 2 * r.ate_rmse_m  # every merge is right (measured: 0.99 against 1.01 mm)
     assert reloc.stats.tracks_created == 1 and reloc.stats.relocalisations >= 1
+
+
+@pytest.mark.slow
+def test_an_unmerged_track_is_written_beside_the_trajectory(cfg, tmp_path):
+    """desk_tracks cut before the walk back: the two tracks never overlap. The trajectory file holds the larger
+    (the second poster, 97 frames), the first track's poses and map go beside it in their own frame, and each
+    file is right in its own frame."""
+    from ptam.cli import main as cli_main
+    from ptam.eval.score import score_trajectory as score
+    from ptam.eval.tum_io import read_tum
+    from tests.support import sequence
+
+    d = sequence("desk_tracks")
+    cut = tmp_path / "cut"
+    cut.mkdir()
+    for name in ("camera.yaml", "groundtruth.txt"):
+        (cut / name).write_bytes((d / name).read_bytes())
+    (cut / "rgb").symlink_to(d / "rgb")
+    (cut / "rgb.txt").write_text("".join((d / "rgb.txt").read_text().splitlines(keepends=True)[:203]))
+    traj, map_ = tmp_path / "t.txt", tmp_path / "m.npz"
+    argv = [
+        "run",
+        "--dataset",
+        str(cut),
+        "--no-viewer",
+        "--mode",
+        "sync",
+        "--trajectory",
+        str(traj),
+        "--map",
+        str(map_),
+    ]
+    assert cli_main(argv) == 0
+    main, first = (
+        score(d / "groundtruth.txt", list(zip(*read_tum(p))), criteria=criteria(cfg))
+        for p in (traj, tmp_path / "t.track0.txt")
+    )
+    assert (tmp_path / "m.track0.npz").is_file()
+    assert main.matched > first.matched >= 70  # the second poster's track is the larger
+    for s in (main, first):
+        assert s.glitches == 0 and s.correct == s.matched and s.ate_rmse_m < 0.002

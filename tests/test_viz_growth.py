@@ -30,6 +30,8 @@ class _System:
         self.trails = None
         self.init_started = False
         self.mapper = SimpleNamespace(snapshot=None, stats={}, queue_size=lambda: 0)
+        self.track_id = 0  # one track, never merged (Gauglitz §4.4)
+        self.stats = SimpleNamespace(tracks_merged=0)
 
 
 def _record(path, frames: int) -> tuple[int, Viewer]:

@@ -117,7 +117,8 @@ def write_trajectory(path: str, trajectory: list) -> None:
 
 
 def track_path(path: str, track: int) -> str:
-    """Where the poses of a track not merged into the largest go: ``traj.txt`` -> ``traj.track2.txt``."""
+    """Where a track not merged into the largest goes: ``traj.txt`` -> ``traj.track2.txt`` (poses),
+    ``map.npz`` -> ``map.track2.npz`` (its map)."""
     root, ext = os.path.splitext(path)
     return f"{root}.track{track}{ext}"
 
@@ -332,7 +333,7 @@ class RunOutputs:
         jobs = [
             ("--trajectory", self.trajectory_path, lambda: self._finish_trajectory(system)),
             ("--keyframes", self.keyframes_path, lambda: write_keyframes(self.keyframes_path, snap)),
-            ("--map", self.map_path, lambda: self._finish_map(snap)),
+            ("--map", self.map_path, lambda: self._finish_map(snap, system)),
         ]
         for option, path, job in jobs:
             if not path:
@@ -353,11 +354,15 @@ class RunOutputs:
         for track, poses in system.other_tracks.items():
             write_trajectory(track_path(self.trajectory_path, track), poses)
 
-    def _finish_map(self, snap) -> None:
+    def _finish_map(self, snap, system) -> None:
+        """The largest track's map (:meth:`_finish_trajectory`); each unmerged track's map beside it."""
         if snap is None or snap.n_keyframes == 0:
             print(f"ptam: no map to write to {self.map_path} (no map was built)", file=sys.stderr)
             return
         write_map(self.map_path, snap, self.camera, self.levels)
+        for track, mapper in system.track_mappers.items():
+            if track != system.track_id and mapper.snapshot is not None and mapper.snapshot.n_keyframes:
+                write_map(track_path(self.map_path, track), mapper.snapshot, self.camera, self.levels)
 
 
 def finish_video(path: str | None) -> None:

@@ -126,7 +126,7 @@ class System(Initialisation, KeyframePolicy, Tracks):
     def _mapper_loop(self) -> None:
         try:
             while not self._stop.is_set():
-                if not (self.mapper.step() or self._step_set_aside() or self._merge_tracks()):
+                if not (self.mapper.step() or self._merge_tracks() or self._step_set_aside()):
                     self._wake.wait(self.cfg.system.mapper_idle_wait_s)
                     self._wake.clear()
                 self._stepped.set()

@@ -33,7 +33,7 @@ from ..mapping.map_maker import MapMaker
 from ..mapping.track_merge import Similarity, absorb
 from ..tracking.relocaliser import Relocaliser
 from ..tracking.tracker import Tracker
-from ..vocabulary import InitMode, Quality, TrackingState
+from ..vocabulary import Quality, TrackingState
 from .frame_outcome import FrameOutcome
 from .merge_search import MergeSearch
 from .run_stats import RunStats
@@ -67,7 +67,6 @@ class Tracks:
 
     camera: CameraModel
     cfg: Config
-    init_mode: InitMode
     localize_only: bool
     mapper: MapMaker
     tracker: Tracker
@@ -94,11 +93,6 @@ class Tracks:
     def track_mappers(self) -> dict[int, MapMaker]:
         """Every track's mapper (and map) by track id: the current one and those set aside."""
         return {**{t.id: t.mapper for t in tuple(self._dormant.values())}, self.track_id: self.mapper}
-
-    @property
-    def n_tracks(self) -> int:
-        """Tracks with a map: the current one and those set aside."""
-        return len(self._dormant) + int(self.mapper.initialised)
 
     # -- the tracker's thread ---------------------------------------------------------------------------
     def _new_track_on_loss(self) -> bool:
@@ -226,7 +220,8 @@ class Tracks:
     # -- the mapper's thread (the tracker's in sync mode) -----------------------------------------------
     def _step_set_aside(self) -> bool:
         """One unit of a set-aside track's mapping work (Gauglitz §5: the background thread serves every track),
-        once the current track's mapper is idle; False when none has any."""
+        once the current track's mapper is idle and no merge is left to try (§5: after a loss merging comes
+        first, so that it can be as quick as relocalisation); False when none has any."""
         return any(t.mapper.step() for t in tuple(self._dormant.values()))
 
     def _merge_tracks(self) -> bool:

@@ -24,7 +24,10 @@ def _plots() -> list:
 def default_blueprint(augmented: bool = False) -> rrb.Blueprint:
     map_view = rrb.Spatial3DView(origin="world", name="map")
     camera = rrb.Spatial2DView(origin=CAMERA_IMAGE, name="camera")
-    state = rrb.StateTimelineView(origin="state", name="tracking state")
+    state = rrb.Tabs(
+        rrb.StateTimelineView(origin="state", name="tracking state"),
+        rrb.TextLogView(origin="events", name="tracks"),  # switches and merges (Gauglitz et al. §4.4, §5.3)
+    )
     if augmented:
         ar = rrb.Spatial2DView(origin=AUGMENTED_IMAGE, name="augmented (AR)")
         left = rrb.Vertical(rrb.Tabs(ar, camera, active_tab=0), state, row_shares=[5, 1])

@@ -346,7 +346,6 @@ class Viewer:
         self._emit("plots/keyframes/keyframes", rr.Scalars(snap.n_keyframes if snap is not None else 0))
         self._emit("plots/mapper/queue", rr.Scalars(item.mapper_queue))
         self._emit("plots/mapper/bundle_adjustment", rr.Scalars(_BA_CODES.get(item.ba_running, 0)))
-        self._emit("plots/tracks/current", rr.Scalars(item.track))
         if (item.track, item.merged) != self._tracks:  # the map shown is another track's, or grew by a merge
             what = "merged into" if item.merged > self._tracks[1] else "now"
             self._emit("events", rr.TextLog(f"{what} track {item.track} ({item.merged} merges so far)"))
