@@ -16,3 +16,4 @@ class TracksConfig:
     merge_min_common: Annotated[int, Range("[1, inf)")]
     merge_common_radius_px: Annotated[float, Range("(0, inf)")]
     merge_max_scale_spread: Annotated[float, Range("(0, inf)")]
+    merge_agreement_sigmas: Annotated[float, Range("(0, inf)")]

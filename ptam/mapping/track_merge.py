@@ -49,6 +49,9 @@ class Similarity:
         out[:, :3, :3] = self.R @ out[:, :3, :3]
         return out
 
+    def inverse(self) -> Similarity:
+        return Similarity(self.R.T, -(self.R.T @ self.t) / self.s, 1.0 / self.s)
+
     def then(self, other: Similarity) -> Similarity:
         """``other`` applied after this one."""
         return Similarity(other.R @ self.R, other.points(self.t), other.s * self.s)
