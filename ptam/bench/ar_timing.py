@@ -15,6 +15,12 @@ recording to a temporary .rrd, once without AR and once per AR scene shown in it
 ms per frame for each, the augmented frames drawn, the frames the viewer or the AR worker had no time for, and the
 AR worker's CPU time per tracked frame (what it takes from the cores the tracker and mapper share; unlike the
 tracker's median it hardly depends on what else the machine runs).
+
+Sync replay keeps both cores busy, so there every millisecond the AR worker draws is taken from the tracker or
+the mapper. A live camera delivers frames at its rate and the tracker idles between them: the last rows replay
+the frames in ``realtime`` mode (paced at the sequence's rate, as a camera delivers them), alternating the AR view
+off and on ``realtime_runs`` times, and give each setting's median of the runs' tracker medians with their range,
+so the difference can be read against the run-to-run noise.
 """
 
 from __future__ import annotations
@@ -31,6 +37,7 @@ from ..ar.layer import frame_image
 from ..ar.video_writer import FOURCC, open_video_writer
 from ..camera import load_camera
 from ..capture import open_dataset
+from ..capture.realtime import RealtimeFeed
 from ..errors import InputError
 from ..synthetic import ensure_sequence
 from ..system import System
@@ -85,7 +92,7 @@ def _scene_row(cfg, camera, name: str, kept) -> tuple[dict, np.ndarray]:
     return row, last
 
 
-def run_ar_benchmark(cfg, scene: str = "two_wall", out=print, frames: int = 200) -> dict:
+def run_ar_benchmark(cfg, scene: str = "two_wall", out=print, frames: int = 200, realtime_runs: int = 3) -> dict:
     """Render every AR scene over the tracked frames; print ms per frame and the summary line; return them."""
     if frames < 2:
         raise InputError(f"bench ar: frames must be at least 2, got {frames}")
@@ -127,34 +134,47 @@ def run_ar_benchmark(cfg, scene: str = "two_wall", out=print, frames: int = 200)
         + ", ".join(f"{codec} {v:.2f} ms" for codec, v in encode.items())
     )
     viewer_rows = _viewer_rows(cfg, seq, frames, out)
+    live_rows = _realtime_rows(cfg, seq, frames, realtime_runs, out)
     worst = max(r["mean"] for r in rows.values())
     result = dict(ar_render_ms=worst)
     out(f"ar_render_ms={worst:.2f}")
-    return {**result, "scenes": rows, "encode_ms": encode, "frames": len(kept), "viewer": viewer_rows}
+    return {
+        **result,
+        "scenes": rows,
+        "encode_ms": encode,
+        "frames": len(kept),
+        "viewer": viewer_rows,
+        "realtime": live_rows,
+    }
 
 
-def _track_with_viewer(cfg, seq: Path, frames: int, viewer: bool, scene: str | None) -> dict:
-    """Track the first ``frames`` frames (sync), with a viewer recording to a temporary .rrd if ``viewer`` and, if
-    ``scene``, the AR worker showing augmented frames in it; the tracker's ms per frame and what was shown."""
+def _track_with_viewer(
+    cfg, seq: Path, frames: int, viewer: bool, scene: str | None, mode: RunMode = RunMode.SYNC
+) -> dict:
+    """Track the first ``frames`` frames in ``mode``, with a viewer recording to a temporary .rrd if ``viewer`` and,
+    if ``scene``, the AR worker showing augmented frames in it; the tracker's ms per frame and what was shown."""
     camera = load_camera(seq / "camera.yaml")
     ms = []
     with tempfile.TemporaryDirectory() as tmp:
         recording = open_recording(cfg.viewer, rrd=str(Path(tmp) / "bench.rrd")) if viewer else None
         view = Viewer(recording.stream, camera, cfg, augmented=scene is not None) if viewer else None
-        with open_dataset(seq, cfg.capture.default_fps) as src, System(camera, cfg, mode=RunMode.SYNC) as system:
+        with open_dataset(seq, cfg.capture.default_fps) as src, System(camera, cfg, mode=mode) as system:
             if view is not None:
                 system.observers.append(view)
             layer = attach(system, scene, fps=src.fps) if scene is not None else None
             if layer is not None:
                 layer.listeners.append(view.augmented)
+            feed = RealtimeFeed(src) if mode == RunMode.REALTIME else src
             try:
-                for frame in src:
+                for frame in feed:
                     if frame.index >= frames:
                         break
                     result = system.process(frame).result
                     if result is not None:
                         ms.append(result.timings.total)
             finally:
+                if isinstance(feed, RealtimeFeed):
+                    feed.close()
                 if layer is not None:
                     layer.close()
                 if view is not None:
@@ -189,4 +209,30 @@ def _viewer_rows(cfg, seq: Path, frames: int, out) -> dict:
             f"{'rrd' if viewer else 'none':<8}{str(scene or ArScene.OFF):<9}{r['median']:>12.2f}{r['p95']:>10.2f}"
             f"{r['dropped']:>18d}{r['ar_drawn']:>17d}{r['ar_dropped']:>21d}{r['ar_cpu_ms']:>19.2f}"
         )
+    return rows
+
+
+def _realtime_rows(cfg, seq: Path, frames: int, runs: int, out) -> dict:
+    """The tracker's median ms in ``realtime`` mode with the viewer recording, the AR view off and on (the config's
+    scene), alternated ``runs`` times: per setting the median of the runs' medians and their range."""
+    scene = cfg.ar.scene if cfg.ar.scene != ArScene.OFF else ArScene.GRID
+    out(
+        f"tracker ms per frame (realtime: frames paced at the sequence's rate, as a live camera delivers them), viewer "
+        f"recording, AR view off and {scene} alternated {runs} times"
+    )
+    out(f"{'AR view':<9}{'median of medians (ms)':>24}{'range (ms)':>16}{'p95 median (ms)':>17}")
+    medians: dict[str, list[dict]] = {str(ArScene.OFF): [], str(scene): []}
+    for _ in range(runs):  # alternated, so a drift in the machine's speed falls on both settings
+        for name in medians:
+            medians[name].append(
+                _track_with_viewer(cfg, seq, frames, True, None if name == ArScene.OFF else name, RunMode.REALTIME)
+            )
+    rows = {}
+    for name, rs in medians.items():
+        m = np.array([r["median"] for r in rs])
+        rows[name] = dict(median=float(np.median(m)), low=float(m.min()), high=float(m.max()),
+                          p95=float(np.median([r["p95"] for r in rs])))  # fmt: skip
+        r = rows[name]
+        span = f"{r['low']:.2f}-{r['high']:.2f}"
+        out(f"{name:<9}{r['median']:>24.2f}{span:>16}{r['p95']:>17.2f}")
     return rows
