@@ -24,10 +24,11 @@ import numpy as np
 
 from ..config import ModelSelectionConfig, TrackerConfig
 from ..vocabulary import PoseModel
+from .model_selection_kernels import ERROR_DIM, scaled_sq_errors
+from .model_selection_kernels import em_noise as em_noise_kernel
 from .pose_update import update_pose
 
 K_GENERAL, K_ROTATION = 6, 3  # Gauglitz et al. Table 2: parameters of [R|t] and [R|0]
-ERROR_DIM = 2  # Table 2: D − d_m, a 2-D reprojection error for both absolute pose models
 
 
 @dataclass(frozen=True)
@@ -46,16 +47,9 @@ def em_noise(e2: np.ndarray, search_area: float, cfg: ModelSelectionConfig) -> t
     """σ² and inlier ratio γ of squared 2-D errors ``e2`` by EM (Gauglitz §4.2): a mixture of Gaussian inliers
     and outliers uniform over ``search_area``, clamped (§8.1)."""
     lo, hi = cfg.inlier_ratio_bounds
-    floor = cfg.min_sigma**2
-    sigma2 = max(float(np.median(e2)) / (2.0 * math.log(2.0)), floor)  # median of a 2-dof χ² is 2 ln 2 σ²
-    gamma = 0.5 * (lo + hi)
-    for _ in range(cfg.em_iterations):
-        p_in = gamma * np.exp(-e2 / (2.0 * sigma2)) / (2.0 * math.pi * sigma2)
-        p_out = (1.0 - gamma) / search_area
-        r = p_in / (p_in + p_out)
-        gamma = min(max(float(r.mean()), lo), hi)
-        sigma2 = max(float((r * e2).sum() / (ERROR_DIM * max(r.sum(), 1e-12))), floor)
-    return sigma2, gamma
+    e2 = np.ascontiguousarray(e2, dtype=np.float64)
+    sigma2, gamma = em_noise_kernel(e2, float(search_area), lo, hi, cfg.min_sigma**2, cfg.em_iterations)
+    return float(sigma2), float(gamma)
 
 
 def gric(e2: np.ndarray, sigma2: float, gamma: float, search_area: float, k: int) -> float:
@@ -93,20 +87,10 @@ def select_pose_model(
     area = (2.0 * tcfg.fine_radius_px) ** 2  # Table 2: S × S, the search region, in the errors' level units
     scores = []
     for T, k in ((T_gen, K_GENERAL), (T_rot, K_ROTATION)):
-        e2 = _scaled_sq_errors(camera, T, X, Xw, xy, level, area)
+        e2 = scaled_sq_errors(cam, T, X, Xw, xy, level.astype(np.float64), area)
         scores.append(gric(e2, *em_noise(e2, area, cfg), area, k))
     if scores[1] <= scores[0]:
         return ModelChoice(PoseModel.ROTATION, T_rot, w_rot, scores[0], scores[1])
     w_gen = w_rot.copy()  # rays keep their rotation-only weights: the mapper counts them as seen
     w_gen[sfm] = w_sfm
     return ModelChoice(PoseModel.GENERAL, T_gen, w_gen, scores[0], scores[1])
-
-
-def _scaled_sq_errors(camera, T_cw, X, Xw, xy, level, outside: float) -> np.ndarray:
-    """Squared reprojection errors of homogeneous features in units of each measurement's σ; a point behind the
-    camera counts as an error the size of the search region."""
-    Xc = X @ T_cw[:3, :3].T + Xw[:, None] * T_cw[:3, 3]
-    front = Xc[:, 2] > 0
-    e2 = np.full(len(X), outside)
-    e2[front] = ((camera.project(Xc[front]) - xy[front]) ** 2).sum(axis=1) * np.exp2(-2.0 * level[front])
-    return e2
