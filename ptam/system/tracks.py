@@ -29,6 +29,7 @@ from ..camera.model import CameraModel
 from ..config import Config
 from ..geometry import se3
 from ..image.pyramid import Pyramid
+from ..image.sbi import SmallBlurryImage
 from ..mapping.map_maker import MapMaker
 from ..mapping.track_merge import Similarity, absorb
 from ..tracking.relocaliser import Relocaliser
@@ -138,16 +139,12 @@ class Tracks:
         (as :meth:`System._confirm`); then that track is current again. None while there is no confirmed one."""
         c = self.cfg.reloc
         if self._candidate is None:
-            best = None
-            for t in tuple(self._dormant.values()):  # a copy: the mapper's thread may remove a merged track
-                r = t.relocaliser.attempt(pyramid, t.mapper.snapshot)
-                if r is not None and r.accepted and (best is None or r.alignment.score < best[1].alignment.score):
-                    best = (t, r)
+            reloc = self._relocalise_set_aside(pyramid)
             self.stats.reloc_attempts += 1
-            if best is None:
+            if reloc is None:
                 return None
-            self.tracker.set_pose(best[1].T_cw, recovered=True)
-            self._candidate = (best[0], [])
+            self.tracker.set_pose(reloc[1].T_cw, recovered=True)
+            self._candidate = (reloc[0], [])
         t, poses = self._candidate
         res = self.tracker.track(frame, t.mapper.snapshot, pyramid)
         if res.quality != Quality.GOOD or res.inlier_fraction <= c.confirm_inlier_fraction:
@@ -165,6 +162,23 @@ class Tracks:
         self.stats.relocalisations += 1
         self.state = TrackingState.GOOD
         return FrameOutcome(res.frame_index, res.timestamp, self.state, res.T_cw, res)
+
+    def _relocalise_set_aside(self, pyramid: Pyramid):
+        """Agility §7 over every set-aside track's keyframes at once: the frame's descriptor is made once, the
+        keyframe it is nearest to in any track is aligned, as if the tracks' keyframes were one list (a frame
+        costs the same however many tracks a long session has set aside). (track, accepted relocalisation)."""
+        frame = SmallBlurryImage.from_pyramid(pyramid, self.cfg.reloc.blur_sigma)
+        best, best_ssd = None, np.inf
+        for t in tuple(self._dormant.values()):  # a copy: the mapper's thread may remove a merged track
+            t.relocaliser.sync(t.mapper.snapshot)
+            if t.relocaliser.n_keyframes:
+                ssd = float(t.relocaliser.descriptor_ssd(frame).min())
+                if ssd < best_ssd:
+                    best, best_ssd = t, ssd
+        if best is None:
+            return None
+        r = best.relocaliser.attempt(pyramid, best.mapper.snapshot, frame)
+        return (best, r) if r is not None and r.accepted else None
 
     def _switch_to(self, t: Track) -> bool:
         """Make set-aside track ``t`` current (unless the mapper's thread merged it meanwhile); a current track

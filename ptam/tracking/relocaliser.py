@@ -79,14 +79,15 @@ class Relocaliser:
         f = frame.image.ravel()
         return self._sq_norms[:n] + float(np.vdot(f, f)) - 2.0 * (self._images[:n].reshape(n, -1) @ f)
 
-    def attempt(self, pyramid: Pyramid, snapshot) -> Relocalisation | None:
+    def attempt(self, pyramid: Pyramid, snapshot, frame: SmallBlurryImage | None = None) -> Relocalisation | None:
         """One relocalisation attempt for the frame of ``pyramid`` (PTAM code ``AttemptRecovery``); None when
-        the map has no keyframes."""
+        the map has no keyframes. ``frame``: the frame's descriptor, when already made."""
         c = self.cfg
         self.sync(snapshot)
         if not self._keyframes:
             return None
-        frame = SmallBlurryImage.from_pyramid(pyramid, c.blur_sigma)
+        if frame is None:
+            frame = SmallBlurryImage.from_pyramid(pyramid, c.blur_sigma)
         ssd = self.descriptor_ssd(frame)
         best = int(np.argmin(ssd))
         alignment = frame.align_to(SmallBlurryImage(self._images[best], self._grads[best]), c.iterations, True)
