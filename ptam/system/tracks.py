@@ -195,21 +195,25 @@ class Tracks:
         return True
 
     def _apply_merges(self) -> None:
-        """The tracker's side of merges done in the mapper's thread: move the merged track's poses."""
+        """The tracker's side of merges done in the mapper's thread: move the merged track's poses (under the lock,
+        taken only when a merge happened: the mapper's thread reads a set-aside track's poses when it merges it)."""
         while self._merged:
-            mg = self._merged.popleft()
-            T = np.array([T for _, T in mg.poses]).reshape(-1, 4, 4)
-            moved = list(zip([ts for ts, _ in mg.poses], mg.sim.poses_wc(T)))
-            self.stats.tracks_merged += 1
-            into = mg.into
-            while into != self.track_id and into not in self._dormant and into in self._forward:
-                into, sim = self._forward[into]  # that track was merged on too, before this reached here
-                moved = list(zip([ts for ts, _ in moved], sim.poses_wc(np.array([T for _, T in moved]))))
-            if into == self.track_id:
-                self.trajectory = sorted(self.trajectory + moved, key=lambda p: p[0])
-            elif into in self._dormant:
-                t = self._dormant[into]
-                t.poses = sorted(t.poses + moved, key=lambda p: p[0])
+            with self._tracks_lock:
+                self._apply_merge(self._merged.popleft())
+
+    def _apply_merge(self, mg: Merged) -> None:
+        T = np.array([T for _, T in mg.poses]).reshape(-1, 4, 4)
+        moved = list(zip([ts for ts, _ in mg.poses], mg.sim.poses_wc(T)))
+        self.stats.tracks_merged += 1
+        into = mg.into
+        while into != self.track_id and into not in self._dormant and into in self._forward:
+            into, sim = self._forward[into]  # that track was merged on too, before this reached here
+            moved = list(zip([ts for ts, _ in moved], sim.poses_wc(np.array([T for _, T in moved]).reshape(-1, 4, 4))))
+        if into == self.track_id:
+            self.trajectory = sorted(self.trajectory + moved, key=lambda p: p[0])
+        elif into in self._dormant:
+            t = self._dormant[into]
+            t.poses = sorted(t.poses + moved, key=lambda p: p[0])
 
     def _settle_tracks(self) -> None:
         """At the end of the run: the largest track becomes current (trajectory and map); the poses of the
