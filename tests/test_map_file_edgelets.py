@@ -44,7 +44,7 @@ def with_edgelets(good, tmp_path_factory):  # noqa: F811
 
 def test_edgelets_round_trip_exactly(with_edgelets):
     path, snap = with_edgelets
-    assert VERSION == 3 and int(arrays(path)["version"]) == 3
+    assert VERSION == 4 and int(arrays(path)["version"]) == 4
     again = load_map(path, config().image).map.snapshot()
     for c in EDGELET_COLUMNS:
         a, b = getattr(snap, f"edgelet_{c}"), getattr(again, f"edgelet_{c}")
@@ -56,13 +56,23 @@ def test_edgelets_round_trip_exactly(with_edgelets):
 @pytest.mark.parametrize("version", [1, 2])
 def test_older_versions_load_without_edgelets(with_edgelets, tmp_path, version):
     path, snap = with_edgelets
-    a = {k: v for k, v in arrays(path).items() if not k.startswith("edgelet_")}
+    a = {k: v for k, v in arrays(path).items() if not k.startswith("edgelet_") and k != "kf_part"}
     if version == 1:
         a = {k: v for k, v in a.items() if k not in ("ray", "kf_panorama")}
     np.savez_compressed(tmp_path / "old.npz", **{**a, "version": np.array(version)})
     old = load_map(tmp_path / "old.npz", config().image).map.snapshot()
     assert old.n_points == snap.n_points and len(old.edgelet_centre) == 0 and len(old.edgelet_meas_kf) == 0
     assert old.edgelet_centre.shape == (0, 3) and old.edgelet_meas_a.shape == (0, 2)
+
+
+def test_a_version_3_file_loads_with_every_keyframe_the_maps_own(with_edgelets, tmp_path):
+    """Version 4 added each keyframe's merged-track part (Gauglitz §5.3); a version 3 map has none: all part 0."""
+    path, snap = with_edgelets
+    a = {k: v for k, v in arrays(path).items() if k != "kf_part"}
+    np.savez_compressed(tmp_path / "v3.npz", **{**a, "version": np.array(3)})
+    old = load_map(tmp_path / "v3.npz", config().image).map.snapshot()
+    assert [k.part for k in old.keyframes] == [0] * snap.n_keyframes
+    assert np.array_equal(old.edgelet_centre, snap.edgelet_centre)
 
 
 def test_a_version_3_file_without_edgelets_is_incomplete(with_edgelets, tmp_path):

@@ -62,6 +62,7 @@ def test_appending_a_map_moves_it_and_renumbers_its_references(cfg):
     k0, p0 = append_map(mine, snap, sim)
     assert (k0, p0) == (2, 6) and mine.n_keyframes == 4 and mine.n_points_total == 12
     assert [k.id for k in mine.keyframes] == [0, 1, 2, 3]
+    assert [k.part for k in mine.keyframes] == [0, 0, 1, 1]  # they came with the first merged track
     assert np.abs(mine.X[6:] - sim.points(snap.X)).max() < 1e-12
     assert np.abs(mine.kf_T_cw[2:] - sim.poses_cw(snap.kf_T_cw)).max() < 1e-12
     assert np.array_equal(mine.source_kf[6:], snap.source_kf + 2)
@@ -87,6 +88,8 @@ def test_a_new_track_after_a_loss_is_merged_when_the_first_area_is_seen_again(cf
     assert s.glitches == 0 and r.glitches == 0
     assert s.ate_rmse_m <= 2 * r.ate_rmse_m  # every merge is right (measured: 0.99 against 1.01 mm)
     assert reloc.stats.tracks_created == 1 and reloc.stats.relocalisations >= 1
+    parts = [k.part for k in system.mapper.snapshot.keyframes]
+    assert parts.count(0) >= 2 and parts.count(1) >= 2  # both tracks' keyframes, the merged one as part 1
 
 
 @pytest.mark.slow

@@ -27,6 +27,7 @@ class KeyFrame:
     scene_depth_sigma: float
     timestamp: float = 0.0
     panorama: bool = False  # Gauglitz et al. §4.3: added under rotation-only motion, at its SfM neighbour's centre
+    part: int = 0  # Gauglitz et al. §5.3: 0 when made in this map, k ≥ 1 when it came with the k-th merged track
 
     @staticmethod
     def panorama_flags(keyframes) -> np.ndarray:

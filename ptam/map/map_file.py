@@ -9,8 +9,9 @@ from the current config; so are the edgelets' visibility tables (Agility §5.2),
 Files are written to a temporary file in the target directory and renamed into place, so a crash never leaves half
 a map behind.
 
-Versions: 1 (points), 2 (+ panorama keyframes and rays, Gauglitz et al. §3.2), 3 (+ edgelets, Agility §4). Every
-older version is still read; what it cannot hold loads as absent (no panoramas, no rays, no edgelets).
+Versions: 1 (points), 2 (+ panorama keyframes and rays, Gauglitz et al. §3.2), 3 (+ edgelets, Agility §4), 4 (+ the
+merged track each keyframe came with, §5.3). Every older version is still read; what it cannot hold loads as
+absent (no panoramas, no rays, no edgelets, every keyframe the map's own).
 """
 
 from __future__ import annotations
@@ -33,13 +34,15 @@ from .map_file_checks import FIELDS, Member, check_layout, check_values, read_me
 from .snapshot import MapSnapshot
 
 FORMAT = "ptam-map"
-VERSION = 3
+VERSION = 4
 # Version 2 added panorama keyframes and their rays (Gauglitz et al. §3.2); version 3 the edgelets and their
-# keyframe measurements (Agility §4). An older map has none of what came later: field -> the field whose length it
-# has (an empty field when that is itself new). Versions 1 and 2 are still read.
+# keyframe measurements (Agility §4); version 4 the keyframes' merged-track parts (§5.3). An older map has none of
+# what came later: field -> the field whose length it has (an empty field when that is itself new). Versions 1 to
+# 3 are still read.
 _ADDED = {
     2: {"ray": "X", "kf_panorama": "kf_image0"},
     3: {k: "" for k in FIELDS if k.startswith("edgelet_")},
+    4: {"kf_part": "kf_image0"},
 }
 
 _POINTS = ("X", "normal", "source_kf", "source_level", "source_xy", "bad", "ray")
@@ -72,6 +75,7 @@ def save_map(path: str | os.PathLike, snapshot: MapSnapshot, camera, levels: int
         "kf_depth_sigma": np.array([kf.scene_depth_sigma for kf in snapshot.keyframes]),
         "kf_timestamp": np.array([kf.timestamp for kf in snapshot.keyframes]),
         "kf_panorama": np.array([kf.panorama for kf in snapshot.keyframes], dtype=bool),
+        "kf_part": np.array([kf.part for kf in snapshot.keyframes], dtype=np.int64),
         **{k: np.asarray(getattr(snapshot, k)) for k in _POINTS + _MEASUREMENTS + _EDGELETS},
     }
     directory = os.path.dirname(os.path.abspath(path))
@@ -129,7 +133,8 @@ def _new_since(version: int) -> list[str]:
 
 
 def _added_since(version: int, members: dict[str, Member]) -> dict[str, Member]:
-    """Stand-ins for the fields a ``version`` file cannot have: false flags for panoramas and rays, no edgelets."""
+    """Stand-ins for the fields a ``version`` file cannot have: false flags for panoramas and rays, no edgelets,
+    part 0 (the map's own) for every keyframe."""
     out = {}
     for k in _new_since(version):
         like = next(f[k] for f in _ADDED.values() if k in f)
@@ -147,7 +152,9 @@ def _check_format(path: str, z, members: dict) -> int:
     v = members.get("version")
     version = int(z["version"]) if v is not None and v.dtype.kind in "iu" and v.shape == () else -1
     if version not in range(1, VERSION + 1):
-        raise InputError(f"map file {path} has format version {version}; this ptam reads version {VERSION} (and 1, 2)")
+        raise InputError(
+            f"map file {path} has format version {version}; this ptam reads version {VERSION} (and 1 to 3)"
+        )
     missing = [k for k in FIELDS if k not in members and k not in _new_since(version)]
     if missing:
         raise InputError(f"map file {path} is incomplete: no '{missing[0]}'")
@@ -176,7 +183,8 @@ def load_map(path: str | os.PathLike, image_cfg) -> LoadedMap:
         for i, image in enumerate(a["kf_image0"]):
             pyramid = Pyramid.build(image, image_cfg)
             depth, sigma, stamp = (float(a[k][i]) for k in ("kf_depth_mean", "kf_depth_sigma", "kf_timestamp"))
-            m.add_keyframe(KeyFrame(i, pyramid, depth, sigma, stamp, bool(a["kf_panorama"][i])), a["kf_T_cw"][i])
+            kf = KeyFrame(i, pyramid, depth, sigma, stamp, bool(a["kf_panorama"][i]), int(a["kf_part"][i]))
+            m.add_keyframe(kf, a["kf_T_cw"][i])
         m.add_points(a["X"], a["normal"], a["source_kf"], a["source_level"], a["source_xy"], a["ray"])
         if a["bad"].any():
             m.mark_bad(np.flatnonzero(a["bad"]))

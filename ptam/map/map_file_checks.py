@@ -36,6 +36,7 @@ FIELDS: dict[str, tuple[str, tuple]] = {
     "kf_depth_sigma": ("f", ("n",)),
     "kf_timestamp": ("f", ("n",)),
     "kf_panorama": ("b", ("n",)),
+    "kf_part": ("iu", ("n",)),  # Gauglitz et al. §5.3: 0, or the merged track a keyframe came with (version 4)
     "X": ("f", ("m", 3)),
     "normal": ("f", ("m", 3)),
     "source_kf": ("iu", ("m",)),
@@ -191,6 +192,7 @@ def check_values(path: str, a: dict[str, np.ndarray], width: int, height: int, l
     _rigid(path, a["kf_T_cw"])
     _rows_where(path, "kf_depth_mean", a["kf_depth_mean"] <= 0, a["kf_depth_mean"], "must be positive")
     _rows_where(path, "kf_depth_sigma", a["kf_depth_sigma"] < 0, a["kf_depth_sigma"], "must not be negative")
+    _rows_where(path, "kf_part", a["kf_part"] < 0, a["kf_part"], "must not be negative")
     unit = np.abs(np.linalg.norm(a["normal"], axis=1) - 1.0) > _UNIT_TOL
     _rows_where(path, "normal", unit, a["normal"], "must be a unit vector")
     n, m = len(a["kf_image0"]), len(a["X"])

@@ -72,8 +72,9 @@ def append_map(m: Map, other: MapSnapshot, sim: Similarity) -> tuple[int, int]:
     """Append ``other``'s content to ``m``, moved by ``sim``; returns (first new keyframe, first new point)."""
     k0, p0 = m.n_keyframes, m.n_points_total
     poses = sim.poses_cw(other.kf_T_cw)
+    part = 1 + max(kf.part for kf in m.keyframes)  # the other map's own keyframes, and the parts it had merged
     for kf, T in zip(other.keyframes, poses):  # once per keyframe of a merge
-        m.add_keyframe(dataclasses.replace(kf, id=m.next_keyframe_id), T)
+        m.add_keyframe(dataclasses.replace(kf, id=m.next_keyframe_id, part=part + kf.part), T)
     normal = other.normal @ sim.R.T
     m.add_points(sim.points(other.X), normal, other.source_kf + k0, other.source_level, other.source_xy, other.ray)
     if other.bad.any():

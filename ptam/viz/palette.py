@@ -15,6 +15,8 @@ TRAIL_COLOUR = (255, 160, 0)  # PTAM §6.1 stereo-initialisation trails
 TRAJECTORY_COLOUR = (255, 140, 0)
 KEYFRAME_COLOUR = (80, 160, 255)
 PANORAMA_COLOUR = (230, 80, 230)  # Gauglitz et al. §3.2: panorama keyframes and their rays (no depth)
+# Gauglitz et al. §5.3: keyframes that came with merged tracks, by part (1, 2, ...; cycled), beside KEYFRAME_COLOUR.
+PART_COLOURS = np.array([[80, 220, 120], [255, 200, 60], [0, 200, 220], [200, 120, 60], [160, 120, 255]], np.uint8)
 GRID_COLOUR = (128, 128, 128)  # PTAM code MapViewer::DrawGrid: grey lines ...
 GRID_AXIS_COLOUR = (255, 255, 255)  # ... the two through the origin white
 
@@ -26,6 +28,13 @@ STATE_COLOURS = {
     S.LOST: (220, 0, 0),
     S.RELOCALISING: (255, 120, 0),
 }
+
+
+def keyframe_colour(kf) -> tuple:
+    """A keyframe's frustum: panorama keyframes in their colour, else by the part of the map it came with."""
+    if kf.panorama:
+        return PANORAMA_COLOUR
+    return KEYFRAME_COLOUR if kf.part == 0 else tuple(int(c) for c in PART_COLOURS[(kf.part - 1) % len(PART_COLOURS)])
 
 
 def level_colours(levels: np.ndarray) -> np.ndarray:

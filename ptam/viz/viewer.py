@@ -292,7 +292,7 @@ class Viewer:
                         principal_point=pp,
                         resolution=size,
                         image_plane_distance=c.frustum_depth,
-                        color=palette.PANORAMA_COLOUR if keyframes[i].panorama else palette.KEYFRAME_COLOUR,
+                        color=palette.keyframe_colour(keyframes[i]),
                     ),
                     rr.Image(keyframes[i].pyramid.levels[level]),
                 )
