@@ -45,7 +45,9 @@ PAPER_ATE_MM = 6.0  # PTAM §7.3: standard deviation from ground truth on its sy
 KEY_INIT, KEY_RESET, KEY_QUIT = " ", "r", "q"
 KEY_FIRE, KEY_SCENE = "f", "a"  # the game's fire button; the next AR scene (PTAM's "Draw AR" toggle, its eyes included)
 SCENE_CYCLE = (ArScene.GRID, ArScene.EYES, ArScene.GAME, ArScene.OFF)
-KEYS_HELP = "ptam: keys: space = stereo-initialisation keyframes (PTAM §6.1), r = reset, q = quit"
+KEYS_HELP = (
+    "ptam: keys: space = stereo-initialisation keyframes (PTAM §6.1; after a loss, of a new track), r = reset, q = quit"
+)
 AR_KEYS_HELP = (
     "ptam: AR keys: a = next AR scene (grid, eyes = PTAM's EyeGame, game, off), "
     "f = fire in the game (aiming at a target for ar.dwell_frames frames also hits it)"

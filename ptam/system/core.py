@@ -162,7 +162,7 @@ class System(Initialisation, KeyframePolicy, Tracks):
     def request_keyframe(self) -> None:
         """The user's key press of stereo initialisation (PTAM §6.1): the first press takes the first keyframe
         and starts the trails, the second takes the second keyframe and builds the map. Ignored in ``auto``
-        mode and once a map exists."""
+        mode and while the current track has a map (after a loss, a new track starts without one: §4.4)."""
         self._key_pressed = self.init_mode == InitMode.KEY and not self.mapper.initialised
 
     @property
