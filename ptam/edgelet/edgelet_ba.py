@@ -103,13 +103,19 @@ def refine_edgelets(
         t = edgelet_terms(camera, poses, edgelets, obs, along)
         w = t.valid.astype(np.float64)[:, None, None]
         J = t.J_edgelet * w
-        H = np.zeros((len(edgelets), 4, 4))
-        g = np.zeros((len(edgelets), 4))
-        np.add.at(H, obs.edgelet, np.einsum("msi,msj->mij", J, J))
-        np.add.at(g, obs.edgelet, np.einsum("msi,ms->mi", J, t.err * w[:, :, 0]))
-        count = np.bincount(obs.edgelet[t.valid], minlength=len(edgelets))
-        solvable = (count >= 2) & (np.linalg.cond(H) < 1.0 / np.finfo(np.float64).eps)
+        n = len(edgelets)
+        H = _sum_by(obs.edgelet, np.einsum("msi,msj->mij", J, J).reshape(-1, 16), n).reshape(n, 4, 4)
+        g = _sum_by(obs.edgelet, np.einsum("msi,ms->mi", J, t.err * w[:, :, 0]), n)
+        count = np.bincount(obs.edgelet[t.valid], minlength=n)
+        # H is symmetric positive semi-definite: its condition number is the ratio of its extreme eigenvalues.
+        lam = np.abs(np.linalg.eigvalsh(H))
+        solvable = (count >= 2) & (lam.min(axis=1) * (1.0 / np.finfo(np.float64).eps) > lam.max(axis=1))
         mu = np.zeros((len(edgelets), 4))
         mu[solvable] = -np.linalg.solve(H[solvable], g[solvable][..., None])[..., 0]
         edgelets = edgelets.updated(mu)
     return edgelets
+
+
+def _sum_by(index: np.ndarray, rows: np.ndarray, n: int) -> np.ndarray:
+    """(n, C) sums of ``rows`` (M, C) grouped by ``index`` (M,): one bincount per column (``np.add.at`` is slow)."""
+    return np.stack([np.bincount(index, weights=rows[:, c], minlength=n) for c in range(rows.shape[1])], axis=1)
