@@ -8,10 +8,11 @@ import pytest
 from ptam.bench.accuracy import criteria
 from ptam.eval.score import score_trajectory
 from ptam.geometry import se3, so3
+from ptam.geometry.sim3 import Similarity
 from ptam.image.pyramid import Pyramid
 from ptam.map.keyframe import KeyFrame
 from ptam.map.map import SRC_TRACKER, Map
-from ptam.mapping.track_merge import Similarity, append_map
+from ptam.mapping.track_merge import append_map
 from ptam.system import run_dataset
 from ptam.vocabulary import RunMode
 

@@ -35,7 +35,7 @@ from ..geometry import se3
 from ..image.pyramid import Pyramid
 from ..map.map import Map
 from ..mapping.map_maker import MapMaker
-from ..tracking.relocaliser import Relocaliser
+from ..tracking.relocaliser import Relocaliser, confirms
 from ..tracking.tracker import Tracker
 from ..tracking.trails import TrailTracker
 from ..vocabulary import InitMode, Quality, RunMode, TrackingState
@@ -207,7 +207,7 @@ class System(Initialisation, KeyframePolicy, Tracks):
             observe(out, self)
         return out
 
-    def _track(self, frame, pyramid: Pyramid | None = None) -> FrameOutcome:
+    def _track(self, frame) -> FrameOutcome:
         snapshot = self.mapper.snapshot
         index, ts = int(frame.index), float(frame.timestamp)
         lost = self.state in (LOST, RELOCALISING) and self._confirming is None
@@ -216,6 +216,7 @@ class System(Initialisation, KeyframePolicy, Tracks):
         relocalising = self.state in (LOST, RELOCALISING) and self.cfg.reloc.enabled
         if self.cfg.reloc.enabled:
             self.relocaliser.sync(snapshot)  # keyframe descriptors as keyframes appear, not all at the first loss
+        pyramid = None
         if relocalising and self._confirming is None:
             pyramid = Pyramid.build(frame.image, self.cfg.image)
             reloc = self.relocaliser.attempt(pyramid, snapshot)
@@ -253,12 +254,11 @@ class System(Initialisation, KeyframePolicy, Tracks):
 
     def _confirm(self, res) -> FrameOutcome:
         """A relocalisation (Agility §7) counts only once the tracker confirms it: ``reloc.confirm_frames``
-        frames in a row tracked with good quality from the relocalised pose, and most of the patches searched
-        kept as Tukey inliers (texture is found anywhere at a wrong pose, but does not fit it). Until then the
-        frames are not reported tracked (a wrong pose is worse than a lost frame); then they all are. A frame
-        that is not good sends the system back to relocalising."""
+        frames in a row that :func:`~ptam.tracking.relocaliser.confirms`. Until then the frames are not reported
+        tracked (a wrong pose is worse than a lost frame); then they all are. A frame that does not confirm sends
+        the system back to relocalising."""
         assert self._confirming is not None
-        if res.quality != Quality.GOOD or res.inlier_fraction <= self.cfg.reloc.confirm_inlier_fraction:
+        if not confirms(res, self.cfg.reloc):
             self._confirming = None
             self.state = RELOCALISING
             return FrameOutcome(res.frame_index, res.timestamp, RELOCALISING, None, res)

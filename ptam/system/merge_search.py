@@ -21,11 +21,12 @@ from scipy.spatial import cKDTree
 
 from ..camera.model import CameraModel
 from ..config import Config
+from ..geometry import se3
+from ..geometry.sim3 import Similarity
 from ..map.snapshot import MapSnapshot
-from ..mapping.track_merge import Link, Similarity
-from ..tracking.relocaliser import Relocaliser
+from ..mapping.track_merge import Link
+from ..tracking.relocaliser import Relocaliser, confirms
 from ..tracking.tracker import Tracker
-from ..vocabulary import Quality
 
 
 @dataclass(frozen=True)
@@ -91,14 +92,13 @@ class MergeSearch:
     def _tracked(self, kf, osnap: MapSnapshot, T_cw: np.ndarray, passes: int, recovered: bool = True):
         """``passes`` tracking steps of keyframe ``kf``'s image against ``osnap`` from ``T_cw``: the last result,
         or None unless every pass is good with most patches Tukey inliers (the relocaliser's confirmation)."""
-        c = self.cfg.reloc
         tracker = self.tracker
         tracker.reset()
         tracker.set_pose(T_cw, recovered=recovered)
         res = None
         for _ in range(passes):
             res = tracker.track(kf.pyramid.levels[0], osnap, kf.pyramid)
-            if res.quality != Quality.GOOD or res.inlier_fraction <= c.confirm_inlier_fraction:
+            if not confirms(res, self.cfg.reloc):
                 return None
             tracker.set_pose(res.T_cw)
         return res
@@ -133,10 +133,10 @@ class MergeSearch:
         tc = self.cfg.tracks
         a = ~osnap.ray[link.point_ids]
         xy_a, d_a = link.xy[a], _distances(T_a, osnap.X[link.point_ids[a]])
-        mine = snap.meas_pt[snap.meas_kf == k1]
+        in_k1 = snap.meas_kf == k1
+        mine = snap.meas_pt[in_k1]
         b = ~snap.ray[mine] & ~snap.bad[mine]
-        xy_b = snap.meas_xy[snap.meas_kf == k1][b]
-        d_b = _distances(snap.kf_T_cw[k1], snap.X[mine[b]])
+        xy_b, d_b = snap.meas_xy[in_k1][b], _distances(snap.kf_T_cw[k1], snap.X[mine[b]])
         if len(xy_a) == 0 or len(xy_b) == 0:
             return None
         dist, j = cKDTree(xy_b).query(xy_a, distance_upper_bound=tc.merge_common_radius_px)
@@ -153,15 +153,10 @@ class MergeSearch:
 def _in_view(camera: CameraModel, T_cw: np.ndarray, snap: MapSnapshot) -> int:
     """How many of ``snap``'s good points (not rays) project into the image in front of a camera at ``T_cw``."""
     ids = snap.good_point_indices[~snap.ray[snap.good_point_indices]]
-    Xc = snap.X[ids] @ T_cw[:3, :3].T + T_cw[:3, 3]
-    Xc = Xc[Xc[:, 2] > 0]
-    if len(Xc) == 0:
-        return 0
-    xy = camera.project(Xc)
-    return int(
-        np.count_nonzero((xy[:, 0] >= 0) & (xy[:, 0] < camera.width) & (xy[:, 1] >= 0) & (xy[:, 1] < camera.height))
-    )
+    Xc = se3.transform(T_cw, snap.X[ids])
+    Xc = Xc[camera.valid(Xc)]
+    return int(np.count_nonzero(camera.in_image(camera.project(Xc)))) if len(Xc) else 0
 
 
 def _distances(T_cw: np.ndarray, X: np.ndarray) -> np.ndarray:
-    return np.linalg.norm(X @ T_cw[:3, :3].T + T_cw[:3, 3], axis=1)
+    return np.linalg.norm(se3.transform(T_cw, X), axis=1)

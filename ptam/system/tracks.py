@@ -20,7 +20,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -28,13 +28,14 @@ import numpy as np
 from ..camera.model import CameraModel
 from ..config import Config
 from ..geometry import se3
+from ..geometry.sim3 import Similarity
 from ..image.pyramid import Pyramid
 from ..image.sbi import SmallBlurryImage
 from ..mapping.map_maker import MapMaker
-from ..mapping.track_merge import Similarity, absorb
-from ..tracking.relocaliser import Relocaliser
+from ..mapping.track_merge import absorb
+from ..tracking.relocaliser import Relocaliser, confirms
 from ..tracking.tracker import Tracker
-from ..vocabulary import Quality, TrackingState
+from ..vocabulary import TrackingState
 from .frame_outcome import FrameOutcome
 from .merge_search import MergeSearch
 from .run_stats import RunStats
@@ -60,7 +61,7 @@ class Merged:
     other: int
     into: int
     sim: Similarity
-    poses: list = field(default_factory=list)
+    poses: list
 
 
 class Tracks:
@@ -135,9 +136,8 @@ class Tracks:
 
     def _candidate_frame(self, frame, pyramid: Pyramid) -> FrameOutcome | None:
         """Agility §7 into the set-aside tracks: the best accepted relocalisation becomes a candidate, tracked
-        against its track's map until ``reloc.confirm_frames`` frames in a row are good with most patches inliers
-        (as :meth:`System._confirm`); then that track is current again. None while there is no confirmed one."""
-        c = self.cfg.reloc
+        against its track's map until ``reloc.confirm_frames`` frames in a row confirm it (as
+        :meth:`System._confirm`); then that track is current again. None while there is no confirmed one."""
         if self._candidate is None:
             reloc = self._relocalise_set_aside(pyramid)
             self.stats.reloc_attempts += 1
@@ -147,11 +147,11 @@ class Tracks:
             self._candidate = (reloc[0], [])
         t, poses = self._candidate
         res = self.tracker.track(frame, t.mapper.snapshot, pyramid)
-        if res.quality != Quality.GOOD or res.inlier_fraction <= c.confirm_inlier_fraction:
+        if not confirms(res, self.cfg.reloc):
             self._candidate = None
             return None
         poses.append((res.timestamp, se3.inv(res.T_cw)))
-        if len(poses) < c.confirm_frames:
+        if len(poses) < self.cfg.reloc.confirm_frames:
             return None
         self._candidate = None
         if not self._switch_to(t):
@@ -202,13 +202,12 @@ class Tracks:
                 self._apply_merge(self._merged.popleft())
 
     def _apply_merge(self, mg: Merged) -> None:
-        T = np.array([T for _, T in mg.poses]).reshape(-1, 4, 4)
-        moved = list(zip([ts for ts, _ in mg.poses], mg.sim.poses_wc(T)))
+        moved = _moved(mg.poses, mg.sim)
         self.stats.tracks_merged += 1
         into = mg.into
         while into != self.track_id and into not in self._dormant and into in self._forward:
             into, sim = self._forward[into]  # that track was merged on too, before this reached here
-            moved = list(zip([ts for ts, _ in moved], sim.poses_wc(np.array([T for _, T in moved]).reshape(-1, 4, 4))))
+            moved = _moved(moved, sim)
         if into == self.track_id:
             self.trajectory = sorted(self.trajectory + moved, key=lambda p: p[0])
         elif into in self._dormant:
@@ -270,4 +269,10 @@ class Tracks:
         def _collect_posed(self, wait: bool = False) -> None: ...
         def _build_in_background(self) -> bool: ...
         def _initialise(self, frame, pyramid: Pyramid | None = None) -> FrameOutcome: ...
-        def _track(self, frame, pyramid: Pyramid | None = None) -> FrameOutcome: ...
+        def _track(self, frame) -> FrameOutcome: ...
+
+
+def _moved(poses: list, sim: Similarity) -> list:
+    """(timestamp, T_wc) poses of a track moved into the frame it joined."""
+    T = np.array([T for _, T in poses]).reshape(-1, 4, 4)
+    return list(zip([ts for ts, _ in poses], sim.poses_wc(T)))

@@ -86,8 +86,9 @@ def select_pose_model(
     T_gen, w_sfm = update_pose(cam, tcfg, T_cw, X[sfm], xy[sfm], level[sfm], False, fixed_sigma)
     area = (2.0 * tcfg.fine_radius_px) ** 2  # Table 2: S × S, the search region, in the errors' level units
     scores = []
+    level_f = level.astype(np.float64)
     for T, k in ((T_gen, K_GENERAL), (T_rot, K_ROTATION)):
-        e2 = scaled_sq_errors(cam, T, X, Xw, xy, level.astype(np.float64), area)
+        e2 = scaled_sq_errors(cam, T, X, Xw, xy, level_f, area)
         scores.append(gric(e2, *em_noise(e2, area, cfg), area, k))
     if scores[1] <= scores[0]:
         return ModelChoice(PoseModel.ROTATION, T_rot, w_rot, scores[0], scores[1])

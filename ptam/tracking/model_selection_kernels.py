@@ -20,13 +20,14 @@ def scaled_sq_errors(cam, T_cw, X, Xw, xy, level, outside):
     n = X.shape[0]
     e2 = np.empty(n)
     for i in range(n):
-        c = np.empty(3)
-        for r in range(3):
-            c[r] = T_cw[r, 0] * X[i, 0] + T_cw[r, 1] * X[i, 1] + T_cw[r, 2] * X[i, 2] + Xw[i] * T_cw[r, 3]
-        if c[2] <= 0.0:
+        x, y, z = X[i, 0], X[i, 1], X[i, 2]
+        cx = T_cw[0, 0] * x + T_cw[0, 1] * y + T_cw[0, 2] * z + Xw[i] * T_cw[0, 3]
+        cy = T_cw[1, 0] * x + T_cw[1, 1] * y + T_cw[1, 2] * z + Xw[i] * T_cw[1, 3]
+        cz = T_cw[2, 0] * x + T_cw[2, 1] * y + T_cw[2, 2] * z + Xw[i] * T_cw[2, 3]
+        if cz <= 0.0:
             e2[i] = outside
             continue
-        u, v, _ = project(cam, c[0], c[1], c[2])
+        u, v, _ = project(cam, cx, cy, cz)
         s = 2.0 ** (-2.0 * level[i])
         e2[i] = ((u - xy[i, 0]) ** 2 + (v - xy[i, 1]) ** 2) * s
     return e2

@@ -21,6 +21,7 @@ import numpy as np
 from ..geometry import se3
 from ..image.pyramid import Pyramid
 from ..image.sbi import Alignment, SmallBlurryImage, small_level
+from ..vocabulary import Quality
 from .rotation_estimator import rotation_from_se2, sample_offsets
 
 
@@ -95,3 +96,10 @@ class Relocaliser:
         T = se3.from_Rt(R, np.zeros(3)) @ snapshot.kf_T_cw[best]
         accepted = alignment.iterations > 0 and alignment.score < c.max_score
         return Relocalisation(best, float(ssd[best]), alignment, T, bool(accepted))
+
+
+def confirms(res, cfg) -> bool:
+    """Whether a frame tracked from a relocalised pose counts towards confirming it (``cfg``: the ``reloc``
+    section): good quality, and most of the patches searched kept as Tukey inliers (texture is found anywhere at
+    a wrong pose, but does not fit it). ``confirm_frames`` such frames in a row confirm a relocalisation."""
+    return res.quality == Quality.GOOD and res.inlier_fraction > cfg.confirm_inlier_fraction
