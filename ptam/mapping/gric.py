@@ -13,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 R_DIM = 4
-MODELS = {"E": (3, 5), "H": (2, 8)}
+# (d, k): the rotation homography K·R·K⁻¹ is a homography with Table 2's k = 3 of [R|0] (Gauglitz et al.).
+MODELS = {"E": (3, 5), "H": (2, 8), "R": (2, 3)}
 
 
 def gric(sq_errors: np.ndarray, sigma: float, model: str, lambda3: float) -> float:

@@ -44,6 +44,7 @@ class TwoViewResult:
 
 
 _CHI2_1_MEDIAN = 0.4549  # the median of a χ² variable with one degree of freedom
+_CHI2_2_MEDIAN = 1.3863  # ... with two (2·ln 2): a homography's Sampson error has codimension 2
 
 
 def _triangulate(T: np.ndarray, r0: np.ndarray, r1: np.ndarray):
@@ -142,3 +143,57 @@ def select_model(r0: np.ndarray, r1: np.ndarray, sigma: float, c, f: float) -> t
     if not cands:
         raise InitFailure("neither an essential matrix nor a homography fits the trails")
     return min(cands, key=lambda k: cands[k]), E, mask_e, H, mask_h
+
+
+def rotation_explains(camera, xy0: np.ndarray, xy1: np.ndarray, init_cfg, method: str, t_max_rel: float) -> bool:
+    """Model-free check for rotation-only motion (Gauglitz §4.2, §6): whether matches ``xy0`` -> ``xy1`` (level-0
+    pixels) are a rotation within the rotation-only model's tolerance. An essential matrix and a homography are
+    fitted robustly (OpenCV USAC, ``method``), the best rotation to their inliers (Kabsch), and GRIC picks among
+    the three (Table 2: E k = 5, D − d = 1; H k = 8 and [R|0] k = 3, D − d = 2). A translating model still counts as
+    a rotation while the translation stays within ``t_max_rel``, the [R|t ≤ t_max] model's t_max / depth (§6.2): for
+    H, its translation over the plane's distance (the smallest of its decompositions: on a planar desk a sideways
+    move looks like a pan to first order, so a rotation's residuals would hide it); for E, the
+    translation over the median depth of the matches it triangulates. σ as in :func:`select_model`."""
+    c = init_cfg
+    if len(xy0) < c.min_matches:
+        return True  # too few matches to tell: the tracker's own quality decides
+    r0 = camera.unproject(np.asarray(xy0, np.float64))
+    r1 = camera.unproject(np.asarray(xy1, np.float64))
+    f = 0.5 * (camera.fx + camera.fy)
+    thr, usac = c.essential_threshold_px / f, _USAC[method]
+    cv2.setRNGSeed(c.ransac_seed)
+    E, mask_e = cv2.findEssentialMat(r0, r1, np.eye(3), method=usac, prob=c.ransac_confidence, threshold=thr)
+    H, mask_h = cv2.findHomography(r0, r1, usac, thr, confidence=c.ransac_confidence)
+    fits = [m.ravel().astype(bool) for m, M in ((mask_e, E), (mask_h, H)) if M is not None and M.shape == (3, 3)]
+    if not fits:
+        return True
+    R = _best_rotation(r0[np.logical_or.reduce(fits)], r1[np.logical_or.reduce(fits)])
+    e2 = {"R": homography_sampson_sq(R, r0, r1)}
+    if E is not None and E.shape == (3, 3):
+        e2["E"] = sampson_sq(E, r0, r1)
+    if H is not None and H.shape == (3, 3):
+        e2["H"] = homography_sampson_sq(H, r0, r1)
+    ref = e2["E"] if "E" in e2 else e2["H"] / (_CHI2_2_MEDIAN / _CHI2_1_MEDIAN)
+    sigma = max(float(np.sqrt(np.median(ref) / _CHI2_1_MEDIAN)), c.gric_min_sigma_px / f)
+    score = {k: gric(v, sigma, k, c.gric_lambda3) for k, v in e2.items()}
+    best = min(score, key=lambda k: score[k])
+    if best == "H":
+        _, _, ts, _ = cv2.decomposeHomographyMat(H, np.eye(3))
+        return min(float(np.linalg.norm(t)) for t in ts) <= t_max_rel
+    if best == "E":
+        inl = mask_e.ravel().astype(bool)
+        _, R_e, t, _ = cv2.recoverPose(E, r0, r1, np.eye(3), mask=mask_e.astype(np.uint8).copy())
+        X0, _ = _triangulate(se3.from_Rt(R_e, t.ravel()), r0[inl], r1[inl])  # depths in units of the translation
+        depth = X0[:, 2][X0[:, 2] > 0]
+        return len(depth) == 0 or 1.0 / float(np.median(depth)) <= t_max_rel
+    return True
+
+
+def _best_rotation(r0: np.ndarray, r1: np.ndarray) -> np.ndarray:
+    """The rotation R with bearing(r1) ≈ R·bearing(r0) in least squares (Kabsch), unit-plane points."""
+    a = np.concatenate([r0, np.ones((len(r0), 1))], axis=1)
+    b = np.concatenate([r1, np.ones((len(r1), 1))], axis=1)
+    a /= np.linalg.norm(a, axis=1, keepdims=True)
+    b /= np.linalg.norm(b, axis=1, keepdims=True)
+    U, _, Vt = np.linalg.svd(b.T @ a)
+    return U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
