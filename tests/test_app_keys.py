@@ -16,6 +16,7 @@ from ptam.capture import open_dataset
 from ptam.capture.keys import TerminalKeys
 from ptam.commands.run_progress import CLEAR_LINE, Display
 from ptam.config import load_config
+from ptam.geometry import se3
 from ptam.system import INITIALISING, System
 from ptam.viz.viewer import Viewer
 from tests.support import capture, sequence
@@ -47,7 +48,11 @@ def test_space_presses_take_the_two_stereo_keyframes_and_reset_starts_over(tmp_p
     assert states[:SECOND] == [INITIALISING] * SECOND and [s.is_tracking for s in states[SECOND:]] == [True] * 3
     snap = system.mapper.snapshot
     assert [kf.timestamp for kf in snap.keyframes] == [frames[FIRST].timestamp, frames[SECOND].timestamp]
-    assert len(system.trajectory) == SECOND - FIRST + 3  # both keyframes, the frames between, and three after
+    # Both keyframes, the frames between, three after, and (initialisation-free, Gauglitz §6) the frames before
+    # the first press, tracked rotation-only in a panorama about the first keyframe's centre.
+    assert len(system.trajectory) == SECOND + 3
+    centre = se3.inv(snap.kf_T_cw[0])[:3, 3]
+    assert all(np.allclose(T_wc[:3, 3], centre) for _, T_wc in system.trajectory[:FIRST])
     system.request_keyframe()  # ignored once a map exists
     assert system.process(frames[-1]).state.is_tracking and system.mapper.snapshot.n_keyframes == 2
 
@@ -80,7 +85,8 @@ def test_space_presses_take_the_two_stereo_keyframes_and_reset_starts_over(tmp_p
     strips = [len(s[0]) for s in logged("/world/trajectory/00000", "LineStrips3D:strips")]
     final = [len(s[0]) for s in logged("/world/trajectory", "LineStrips3D:strips")]
     assert max(points) == snap.n_points and points[-1] == 0
-    assert max(strips) == SECOND - FIRST + 4 and final == [0]  # with the frame tracked after the ignored key
+    # With the frame tracked after the ignored key, and the frames tracked before the first press.
+    assert max(strips) == SECOND + 4 and final == [0]
     assert logged("/world/trajectory", "Clear:is_recursive") == [[True]]
 
 

@@ -7,8 +7,9 @@ turn, 15 fps), or one named scene, is run as ``ptam run --dataset`` runs it, in 
 dropped while the tracker is busy, as from a live camera). One table: ATE after Sim(3) (mm), rotation RMSE
 under the same alignment (deg), tracked fraction, correct fraction and glitch frames (``ptam.eval.correctness``
 with the ``eval`` config's thresholds), frames dropped (realtime), the frame at which the map was initialised,
-and the tracker's median / 95th percentile ms per frame. Then one machine-readable line per run. This is a
-measurement: nothing is tuned per scene.
+the first frame given a pose as it was processed (before the map: rotation-only, Gauglitz §6), and the tracker's
+median / 95th percentile ms per frame. Then one machine-readable line per run. This is a measurement: nothing is
+tuned per scene.
 """
 
 from __future__ import annotations
@@ -44,6 +45,7 @@ class AccuracyRun:
     score: Score
     dropped: int | None  # realtime mode only
     init_frame: int | None  # index of the first frame not INITIALISING; None if the map never initialised
+    first_pose: int | None  # index of the first frame given a pose as it was processed (before the map, rotation-only)
     track_ms_median: float
     track_ms_p95: float
     keyframes: int
@@ -61,6 +63,7 @@ class AccuracyRun:
             "glitches": s.glitches,
             "dropped": self.dropped,
             "init_frame": self.init_frame,
+            "first_pose": self.first_pose,
             "track_ms_median": self.track_ms_median,
             "track_ms_p95": self.track_ms_p95,
             "keyframes": self.keyframes,
@@ -73,9 +76,10 @@ def criteria(cfg) -> Criteria:
 
 
 def _replay(seq: Path, cfg, mode: RunMode):
-    """The sequence through a System as ``ptam run --dataset`` does; (system, init frame, dropped)."""
+    """The sequence through a System as ``ptam run --dataset`` does; (system, init frame, first frame with a
+    pose, dropped)."""
     camera = load_camera(seq / "camera.yaml")
-    init_frame = None
+    init_frame = first_pose = None
     with open_dataset(seq, cfg.capture.default_fps) as source:
         feed = RealtimeFeed(source) if mode == RunMode.REALTIME else source
         system = System(camera, cfg, mode=mode)
@@ -85,33 +89,36 @@ def _replay(seq: Path, cfg, mode: RunMode):
                     outcome = system.process(frame)
                     if init_frame is None and outcome.state != TrackingState.INITIALISING:
                         init_frame = int(outcome.index)
+                    if first_pose is None and (outcome.T_cw is not None or outcome.panorama_T_cw is not None):
+                        first_pose = int(outcome.index)
         finally:
             if isinstance(feed, RealtimeFeed):
                 feed.close()
-    return system, init_frame, (feed.dropped if isinstance(feed, RealtimeFeed) else None)
+    return system, init_frame, first_pose, (feed.dropped if isinstance(feed, RealtimeFeed) else None)
 
 
 def run_accuracy(cfg, scene: str, mode: RunMode) -> AccuracyRun:
     seq = ensure_sequence(scene, cfg.synthetic)
     t0 = time.perf_counter()
-    system, init_frame, dropped = _replay(seq, cfg, mode)
+    system, init_frame, first_pose, dropped = _replay(seq, cfg, mode)
     wall = time.perf_counter() - t0
     score = score_trajectory(seq / "groundtruth.txt", system.trajectory, cfg.eval.max_time_diff_s, criteria(cfg))
     ms = np.asarray(system.stats.track_ms, dtype=np.float64)
     med, p95 = (float(np.median(ms)), float(np.percentile(ms, _P95))) if ms.size else (float("nan"),) * 2
     snap = system.mapper.snapshot
     kfs = snap.n_keyframes if snap is not None else 0
-    return AccuracyRun(scene, mode, system.stats.frames, score, dropped, init_frame, med, p95, kfs, wall)
+    return AccuracyRun(scene, mode, system.stats.frames, score, dropped, init_frame, first_pose, med, p95, kfs, wall)
 
 
 def _row(r: AccuracyRun) -> str:
     f = r.fields()
     dropped = "-" if r.dropped is None else str(r.dropped)
     init = "never" if r.init_frame is None else str(r.init_frame)
+    pose = "never" if r.first_pose is None else str(r.first_pose)
     return (
         f"{r.scene:<18}{f['mode']:<10}{f['ate_mm']:>9.1f}{f['rot_rmse_deg']:>9.2f}"
         f"{_PERCENT * f['tracked_fraction']:>9.1f}{_PERCENT * f['correct_fraction']:>9.1f}{f['glitches']:>9d}"
-        f"{dropped:>9}{init:>7}{f['track_ms_median']:>8.1f}{f['track_ms_p95']:>8.1f}{r.keyframes:>5d}"
+        f"{dropped:>9}{init:>7}{pose:>7}{f['track_ms_median']:>8.1f}{f['track_ms_p95']:>8.1f}{r.keyframes:>5d}"
     )
 
 
@@ -129,11 +136,12 @@ def print_table(runs: list[AccuracyRun], cfg, out=print) -> None:
     out(
         f"Accuracy (ATE and rotation RMSE after Sim(3); correct = within {e.correct_mm:g} mm and "
         f"{e.correct_deg:g} deg after a robust Sim(3) fit, over all ground-truth frames; glitches = tracked frames "
-        f"outside that; init = frame at which the map was initialised; ms = tracker per frame)"
+        f"outside that; init = frame at which the map was initialised; pose = first frame given a pose live; "
+        f"ms = tracker per frame)"
     )
     out(
         f"{'scene':<18}{'mode':<10}{'ATE mm':>9}{'rot deg':>9}{'track %':>9}{'correct%':>9}{'glitches':>9}"
-        f"{'dropped':>9}{'init':>7}{'med ms':>8}{'p95 ms':>8}{'kfs':>5}"
+        f"{'dropped':>9}{'init':>7}{'pose':>7}{'med ms':>8}{'p95 ms':>8}{'kfs':>5}"
     )
     for r in runs:
         out(_row(r))

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Annotated
 
+from ..vocabulary import EssentialMethod
 from .interval import Range
 
 
@@ -17,3 +18,5 @@ class ModelSelectionConfig:
     inlier_ratio_bounds: Annotated[list[float], Range("(0, 1)", length=2)]
     panorama_kf_travel: Annotated[float, Range("(0, 1]")]
     turn_keyframes_unspaced: bool
+    initialisation_free: bool
+    rotation_check_method: EssentialMethod

@@ -78,12 +78,11 @@ class MapMaker:
         self._outlier_count = np.zeros(0, np.int64)
         self.recent_converged = True
         self.full_converged = True
-        # Keyframe spacing: the initial baseline over the first keyframe's mean depth (PTAM code
-        # mdWiggleScaleDepthNormalized).
+        # Keyframe spacing (PTAM code mdWiggleScaleDepthNormalized): initial baseline / first keyframe's mean depth.
         self.wiggle_depth_normalised = 0.0
         # ba_running: "local" or "global" while a bundle adjustment runs, else None (read by the viewer).
-        self.stats: dict[str, Any] = {"local_ba": [], "global_ba": [], "ba_running": None}
-        self.stats.update(keyframes_added=0, panorama_keyframes_added=0)
+        self.stats: dict[str, Any] = dict(local_ba=[], global_ba=[], ba_running=None, keyframes_added=0)
+        self.stats["panorama_keyframes_added"] = 0
         self.ready = False  # set once a usable map exists; the mapper thread idles until then
         self.reset_requested = False  # the map is corrupt; the system starts again (PTAM code)
         if len(self.map.keyframes):
@@ -107,9 +106,13 @@ class MapMaker:
             return False
         return nearest_distance / depth_mean > self.cfg.mapper.kf_dist_wiggle_mult * self.wiggle_depth_normalised
 
-    def add_keyframe(self, request: KeyframeRequest) -> None:
+    def add_keyframe(self, request: KeyframeRequest, now: bool = False) -> None:
+        """``now``: integrated at once, in the caller's thread (a panorama before any map: no mapper runs it)."""
         self._handed_over += 1
         self.queue.append(request)
+        if now:
+            self._integrate(self.queue.popleft())
+            self.publish()
 
     def queue_refind(self, point_ids: np.ndarray, first_kf: int) -> None:
         """Search points in keyframes ``first_kf`` on in the background, as newly made ones are (merged tracks)."""

@@ -150,6 +150,7 @@ class System(Initialisation, KeyframePolicy, Tracks):
             self._thread.join()
             self._thread = None
         self._check_mapper()
+        self._keep_rotation_poses()
         self._settle_tracks()
 
     def __enter__(self) -> System:

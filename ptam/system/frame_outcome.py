@@ -13,7 +13,10 @@ INITIALISING = TrackingState.INITIALISING
 
 @dataclass
 class FrameOutcome:
-    """What happened to one frame: the state, the pose if tracked (T_cw), and the tracker's result if any."""
+    """What happened to one frame: the state, the pose if tracked (T_cw), and the tracker's result if any.
+    ``panorama_T_cw``: before any map exists, the pose tracked rotation-only in the panorama that precedes it
+    (Gauglitz et al. §6), in that panorama's frame (its first keyframe at the identity), not the map's; the
+    trajectory holds it moved into the map's frame once the map exists."""
 
     index: int
     timestamp: float
@@ -23,3 +26,4 @@ class FrameOutcome:
     keyframe_added: bool = False
     process_ms: float = 0.0
     frame: object = None  # the capture Frame, for observers that show the image
+    panorama_T_cw: np.ndarray | None = None

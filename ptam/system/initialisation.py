@@ -16,6 +16,7 @@ from ..mapping.map_maker import MapMaker
 from ..tracking.tracker import Tracker
 from ..vocabulary import InitMode, RunMode, TrackingState
 from .frame_outcome import INITIALISING, FrameOutcome
+from .rotation_start import RotationStart
 from .run_stats import RunStats
 from .stereo_start import StereoStart
 
@@ -43,17 +44,22 @@ class Initialisation:
 
     def _initialise(self, frame, pyramid: Pyramid | None = None) -> FrameOutcome:
         index, ts = int(frame.index), float(frame.timestamp)
-        idle = FrameOutcome(index, ts, INITIALISING, None)
         key, self._key_pressed = self._key_pressed, False
         if pyramid is None:
             pyramid = Pyramid.build(frame.image, self.cfg.image)
         init = self._init
-        if not init.started:
+        res = self._track_rotation(frame, pyramid)
+        n = init.advance(pyramid, index, ts) if init.started else None
+        if init.rotation is not None:
+            init.rotation.report(res)
+        idle = FrameOutcome(index, ts, INITIALISING, None, res)
+        if init.rotation is not None:
+            idle.panorama_T_cw = init.rotation.pose_of(index)
+        if n is None:
             fixed = self.init_frames
             if key if self.init_mode == InitMode.KEY else (fixed is None or index == fixed[0]):
                 self._start_trails(pyramid, index, ts, None)
             return idle
-        n = init.advance(pyramid, index, ts)
         if init.building:
             built = init.finished()
             return idle if built is None else self._built(built, index, ts)
@@ -66,6 +72,20 @@ class Initialisation:
             if built is not None:
                 return self._built(built, index, ts)
         return idle
+
+    def _track_rotation(self, frame, pyramid: Pyramid):
+        """Gauglitz §4.3, §6: the frame tracked in the panorama that precedes the map (the first frame begins
+        it); the tracker's result, or None."""
+        rot = self._init.rotation
+        if rot is None:
+            return None
+        if rot.mapper is None:
+            rot.begin(pyramid, int(frame.index), float(frame.timestamp))
+            return None
+        res = rot.track(frame, pyramid)
+        if res is not None:
+            self.stats.track_ms.append(res.timings.total)
+        return res
 
     def _second_keyframe_now(self, key: bool, index: int) -> bool:
         if self.init_mode == InitMode.KEY:
@@ -80,7 +100,13 @@ class Initialisation:
             log.info("initialisation restarts: %s", reason)
             self.last_failure = reason
             self.stats.init_failures.append(reason)
+        rot = self._init.rotation
+        if rot is not None and self.init_mode == InitMode.AUTO and self.init_frames is None and rot.awaits(index):
+            self._init.stop()  # a later frame, whose rotation is known, starts them (see RotationStart.awaits)
+            return
         n = self._init.start(pyramid, index, ts)
+        if rot is not None:
+            rot.anchor(pyramid, index, ts)
         if n < self.cfg.init.min_trails:
             self.last_failure = f"too few corners to start trails ({n} < {self.cfg.init.min_trails})"
             self._init.stop()
@@ -100,6 +126,9 @@ class Initialisation:
         if built.mapper is None:
             self._init_failed(self._init.trails.previous, index, ts, built.failure)
             return FrameOutcome(index, ts, INITIALISING, None)
+        rot, self._init.rotation = self._init.rotation, None
+        if rot is not None:
+            rot.close()
         self.mapper = built.mapper
         self.stats.tracks_created += 1
         log.info("map initialised from frames %d and %d: %d points", built.first[0], built.second[0],
@@ -110,17 +139,37 @@ class Initialisation:
         if T_newest is not None:
             self._held = [(newest.timestamp, se3.inv(T_newest))]
             self.stats.tracked += 1
+        if rot is not None:  # the poses tracked in the panorama before the first keyframe, in the map's frame
+            earlier = rot.before(built.first[0], self.mapper.map.kf_T_cw[0])
+            self.trajectory.extend(earlier)
+            self.stats.tracked += len(earlier)
         self._collect_posed(wait=self.mode == RunMode.SYNC)
         self._init.stop()
-        T = self.mapper.map.kf_T_cw[1] if T_newest is None else T_newest
-        self.tracker.reset()
-        # A pose from the frame's trails alone is approximate: the next frame runs the enlarged coarse stage.
-        self.tracker.set_pose(T, recovered=newest.index != built.second[0])
+        T = self._resume(rot, built, newest.index, T_newest)
         self.state = TrackingState.GOOD
         if self.mode != RunMode.SYNC:
             self._wake.set()
         tracked = T_newest is not None and newest.index == index
         return FrameOutcome(index, ts, TrackingState.GOOD, T if tracked else None, None, index == built.second[0])
+
+    def _resume(self, rot: RotationStart | None, built, newest: int, T_newest: np.ndarray | None) -> np.ndarray:
+        """Tracking resumes at the newest frame: from its PnP pose; without one (its trails lost in a turn), from
+        the second keyframe's carried by the rotation the panorama tracked since (Gauglitz §4.3); else from the
+        second keyframe's. A pose from the trails alone is approximate: the next frame runs the enlarged coarse
+        stage. Where the tracker followed this very frame in a panorama that saw no translation, its velocity and
+        last small image carry on (a velocity measured while the camera translated is a mimicking rotation's)."""
+        T_kf1 = self.mapper.map.kf_T_cw[1]
+        T = T_newest
+        if T is None and rot is not None:
+            T = rot.carried(built.second[0], newest, T_kf1)
+        T = T_kf1 if T is None else T
+        recovered = newest != built.second[0]
+        if rot is not None and rot.tracked_at(newest) and not rot.translated:
+            self.tracker.rebase(T, recovered, rot.tracker)
+        else:
+            self.tracker.reset()
+            self.tracker.set_pose(T, recovered)
+        return T
 
     def _collect_posed(self, wait: bool = False) -> None:
         """Poses of the frames seen while the map was built, as the worker finishes them (in timestamp order
@@ -135,3 +184,10 @@ class Initialisation:
             self.stats.tracked += len(posed)
         held, self._held = self._held, []
         self.trajectory.extend(held)
+
+    def _keep_rotation_poses(self) -> None:
+        """At the end of a run that never built a map: the poses tracked in the panorama are the trajectory."""
+        rot = self._init.rotation
+        if rot is not None and rot.poses and not self.mapper.initialised and not self.trajectory:
+            self.trajectory = [(ts, T_wc) for _, ts, T_wc in rot.poses]
+            self.stats.tracked += len(self.trajectory)

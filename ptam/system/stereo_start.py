@@ -25,6 +25,7 @@ from ..mapping.map_maker import MapMaker
 from ..mapping.stereo_init import StereoMap, init_from_stereo
 from ..mapping.two_view import InitFailure
 from ..tracking.trails import TrailTracker
+from .rotation_start import RotationStart
 
 
 @dataclass(frozen=True)
@@ -62,6 +63,9 @@ class StereoStart:
         self._pool = ThreadPoolExecutor(1, thread_name_prefix="ptam-init") if background else None
         self._job: Future | None = None
         self._posing: Future | None = None
+        ms = cfg.model_selection
+        # Gauglitz §4.3, §6: tracked from the first frame, in a panorama, until this map exists.
+        self.rotation = RotationStart(camera, cfg, background) if ms.enabled and ms.initialisation_free else None
 
     @property
     def started(self) -> bool:
@@ -127,6 +131,8 @@ class StereoStart:
     def close(self) -> None:
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
+        if self.rotation is not None:
+            self.rotation.close()
 
     def abandon(self) -> None:
         """Drop this initialisation, a map being built included, without waiting for the worker."""
@@ -134,6 +140,8 @@ class StereoStart:
         self._job = self._posing = None
         if self._pool is not None:
             self._pool.shutdown(wait=False, cancel_futures=True)
+        if self.rotation is not None:
+            self.rotation.close()
 
     # -- posing the remembered frames ---------------------------------------------------------------------
     def adopt(self, built: Built) -> tuple[TrailFrame, np.ndarray | None]:

@@ -99,6 +99,15 @@ class Tracker:
         if recovered:  # a recovered pose earns trust before it may make keyframes (PTAM §6.2's 20 frames)
             self.frames_since_keyframe = 0
 
+    def rebase(self, T_cw: np.ndarray, recovered: bool, tracking: Tracker) -> None:
+        """Start from ``T_cw`` in another map's frame where ``tracking`` followed the same camera up to this frame
+        (a panorama before the first map, Gauglitz §4.3): as :meth:`set_pose` after :meth:`reset`, but with its
+        velocity (in the camera's frame, so the same in any world frame) and its last small image."""
+        self.reset()
+        self.set_pose(T_cw, recovered)
+        self.motion.velocity = tracking.motion.velocity.copy()
+        self.rotation.previous = tracking.rotation.previous
+
     def keyframe_added(self) -> None:
         """The mapper accepted this frame as a keyframe: restart the frames-since-keyframe count."""
         self.frames_since_keyframe = 0

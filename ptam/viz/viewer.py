@@ -217,15 +217,17 @@ class Viewer:
             ok, jpeg = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, c.jpeg_quality])
             if ok:
                 self._emit("world/camera/image", rr.EncodedImage(contents=jpeg.tobytes(), media_type="image/jpeg"))
-        if o.T_cw is not None:
-            T_wc = se3.inv(o.T_cw)
+        T_cw = o.T_cw if o.T_cw is not None else o.panorama_T_cw  # before the map: the panorama's rotation
+        if T_cw is not None:
+            T_wc = se3.inv(T_cw)
             self._emit("world/camera", rr.Transform3D(translation=T_wc[:3, 3], mat3x3=T_wc[:3, :3]))
         found_xy, found_level, failed_xy = np.zeros((0, 2)), np.zeros(0, np.int8), np.zeros((0, 2))
-        if o.result is not None and item.snapshot is not None:
+        if o.result is not None:
             m = o.result.measurements
             found_xy, found_level = m.xy[m.found], m.level[m.found]
             missed = m.point_ids[~m.found]
-            if len(missed):
+            # Before the map the tracker follows a panorama the viewer does not hold: its found rays only.
+            if len(missed) and item.snapshot is not None and o.state != TrackingState.INITIALISING:
                 Xc = se3.transform(o.result.T_cw, item.snapshot.X[missed])
                 failed_xy = self.camera.project(Xc[Xc[:, 2] > 0])
         off = map_entities.RERUN_PIXEL_OFFSET

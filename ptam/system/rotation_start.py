@@ -1,0 +1,201 @@
+"""Tracking from the first frame, before any map exists (Gauglitz et al. TVCG 2013 §4.3, §6: no separate
+initialisation step).
+
+The first frame becomes a panorama keyframe: its corners are rays without depth (Gauglitz §3.2,
+:mod:`ptam.mapping.panorama`), and the tracker follows them with the rotation-only model from the next frame on
+(§4.2; with no 3-D point in view [R|t] cannot be estimated, and [R|0] is the only model). The view turning away
+from every keyframe adds panorama keyframes (§4.3). Meanwhile PTAM's trails run from the frame where stereo
+initialisation starts (the *anchor*), and the first SfM group is triangulated from them once their two-view GRIC
+selects a translating relation with enough parallax (:mod:`.stereo_start`, :mod:`ptam.mapping.two_view`).
+
+A rotation-only pose cannot represent a translation, and on a planar desk a sideways move looks like a pan to
+first order. So every frame is also checked model-free (§4.1–§4.2): the rays found in it against where their
+keyframe saw them, E and H against a rotation by GRIC, and a translating winner measured against the rotation
+model's t_max (:func:`~ptam.mapping.two_view.rotation_explains`). Once a translation shows, the poses are
+withheld (a wrong pose is worse than none) until the SfM group exists; the frames between its two keyframes are
+then posed against it (:meth:`.stereo_start.StereoStart.adopt`), and the poses reported before its first
+keyframe are moved into its frame, about that keyframe's centre, which the panorama shares. The tracker carries
+on from the panorama (:meth:`~ptam.tracking.tracker.Tracker.rebase`): its velocity is the camera's.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import deque
+from concurrent.futures import Future, ThreadPoolExecutor
+
+import numpy as np
+
+from ..camera.model import CameraModel
+from ..config import Config
+from ..geometry import se3
+from ..geometry.sim3 import Similarity
+from ..image.pyramid import Pyramid, level_to_zero
+from ..mapping.map_maker import KeyframeRequest, MapMaker
+from ..mapping.two_view import rotation_explains
+from ..tracking.track_result import TrackResult
+from ..tracking.tracker import Tracker
+from ..vocabulary import Quality
+
+log = logging.getLogger("ptam")
+
+
+class RotationStart:
+    """The panorama the camera is tracked in before the first map, and the poses reported in it."""
+
+    def __init__(self, camera: CameraModel, cfg: Config, background: bool):
+        self.camera = camera
+        self.cfg = cfg
+        # Keyframes are integrated beside the tracker where frames keep coming (the first one, in begin(), at once).
+        self._pool = ThreadPoolExecutor(1, thread_name_prefix="ptam-panorama") if background else None
+        self._job: Future | None = None
+        self.mapper: MapMaker | None = None  # keyframes of rays only
+        # Its own tracker: after a loss the system's confirms relocalisations into set-aside tracks meanwhile.
+        self.tracker = Tracker(camera, cfg)
+        self.poses: list[tuple[int, float, np.ndarray]] = []  # (index, timestamp, T_wc) reported
+        self.translated = False  # a translation showed since the panorama began
+        self._poor = False  # the newest frame was tracked with poor quality
+        self._anchor: tuple[int, np.ndarray] | None = None  # (index, T_cw) where the trails start
+        self._latest: tuple[int, np.ndarray] | None = None  # (index, T_cw) of the newest frame reported
+        self._tracked: deque[tuple[int, np.ndarray]] = deque(maxlen=cfg.init.max_history_frames)  # reported or not
+        # The ray depth: where the stereo pair's assumed baseline gives the disparity that takes it (PTAM §6.1),
+        # so the panorama is drawn at about the scale the first map will have; the tracker uses directions only.
+        self._depth = cfg.init.baseline_m / cfg.init.auto_min_disparity_rel_focal
+        # Gauglitz §6.2: the rotation-only model holds up to t_max = α_max·depth, α_max = r_fine / f (as the tracker's).
+        self._t_max_rel = cfg.tracker.fine_radius_px / camera.fx
+
+    def begin(self, pyramid: Pyramid, index: int, timestamp: float) -> np.ndarray | None:
+        """Frame ``index`` is the first panorama keyframe, at the identity, and tracking starts from it; unless it
+        has fewer corners than ``init.min_trails`` (as trails, a later frame tries again): then None."""
+        self.mapper = MapMaker(self.camera, self.cfg)
+        self.poses, self._anchor, self.translated = [], None, False
+        T = np.eye(4)
+        self._add_keyframe(pyramid, timestamp, T)
+        if self.mapper.map.n_points_total < self.cfg.init.min_trails:
+            self.mapper = None
+            return None
+        self.tracker.reset()
+        self.tracker.set_pose(T)
+        self._reported(index, timestamp, T)
+        return T
+
+    def track(self, frame, pyramid: Pyramid) -> TrackResult | None:
+        if self.mapper is None:
+            return None
+        return self.tracker.track(frame, self.mapper.snapshot, pyramid)
+
+    def report(self, res: TrackResult | None) -> np.ndarray | None:
+        """The frame's pose T_cw if it is reported: tracked with good quality and, by the model-free check, still
+        a rotation about the panorama's centre; else None. A reported frame whose view has turned
+        ``model_selection.panorama_kf_travel`` of the image width from every keyframe's becomes one (§4.3)."""
+        self._poor = res is not None and res.quality == Quality.POOR
+        if res is None or res.quality != Quality.GOOD:
+            return None
+        self._tracked.append((res.frame_index, res.T_cw))
+        if not self.translated and self._translation_seen(res):
+            self.translated = True
+            log.info("frame %d: a translation; poses withheld until the map exists", res.frame_index)
+        if self.translated:
+            return None
+        T = _about_centre(res.T_cw)
+        self._reported(res.frame_index, res.timestamp, T)
+        travel = self.cfg.model_selection.panorama_kf_travel * self.camera.width
+        idle = self._job is None or self._job.done()
+        if idle and res.keyframe.view_travel_px > travel and not (res.rapid_motion or res.in_doubt):
+            self._add_keyframe(res.pyramid, res.timestamp, T, later=True)
+        return T
+
+    def _translation_seen(self, res: TrackResult) -> bool:
+        """Gauglitz §4.1–§4.2's model-free estimation: the rays found in the frame against where the keyframe that
+        most of them come from saw them (every panorama keyframe shares the centre), E and H against a rotation."""
+        assert self.mapper is not None and self.mapper.snapshot is not None
+        snap, m = self.mapper.snapshot, res.measurements
+        ids = m.point_ids[m.found]
+        if not len(ids):
+            return False
+        kf = snap.source_kf[ids]
+        sel = kf == np.bincount(kf).argmax()
+        xy0 = level_to_zero(snap.source_xy[ids[sel]], snap.source_level[ids[sel]])
+        method = self.cfg.model_selection.rotation_check_method
+        return not rotation_explains(self.camera, xy0, m.xy[m.found][sel], self.cfg.init, method, self._t_max_rel)
+
+    def awaits(self, index: int) -> bool:
+        """Whether trails that would start at frame ``index`` should wait for a later frame: this one was tracked
+        in the panorama with poor quality, so its pose is not reported, yet the panorama is not lost; an anchor
+        without a pose would begin a new panorama and lose every pose reported so far."""
+        return self.mapper is not None and self._poor and not self.translated and self.pose_of(index) is None
+
+    def anchor(self, pyramid: Pyramid, index: int, timestamp: float) -> None:
+        """Stereo initialisation's trails start at frame ``index``: its reported pose is where the first map will
+        be joined to the panorama; a frame without one (lost, or moved by a translation) begins a new panorama."""
+        T = self.pose_of(index)
+        if T is None:
+            if self.poses:
+                log.info("the rotation-only poses of %d frames cannot be joined to frame %d", len(self.poses), index)
+            T = self.begin(pyramid, index, timestamp)
+        self._anchor = None if T is None else (index, T)
+        self.translated = False
+
+    def pose_of(self, index: int) -> np.ndarray | None:
+        """T_cw of frame ``index`` if it was reported."""
+        return self._latest[1] if self._latest is not None and self._latest[0] == index else None
+
+    def tracked_at(self, index: int) -> bool:
+        """Frame ``index`` is the newest tracked with good quality (the tracker's state is this frame's)."""
+        return bool(self._tracked) and self._tracked[-1][0] == index
+
+    def carried(self, from_index: int, to_index: int, T_from: np.ndarray) -> np.ndarray | None:
+        """Pose ``T_from`` of frame ``from_index`` carried to frame ``to_index`` by the rotation tracked between
+        them (both tracked with good quality; a short interval, in which the rotation-only model holds), or None."""
+        R = {i: T[:3, :3] for i, T in self._tracked}
+        if from_index not in R or to_index not in R:
+            return None
+        D = np.eye(4)
+        D[:3, :3] = R[to_index] @ R[from_index].T
+        return D @ T_from
+
+    def before(self, first_index: int, T0_cw: np.ndarray) -> list[tuple[float, np.ndarray]]:
+        """(timestamp, T_wc) of the frames reported before the trails' anchor ``first_index``, moved into the
+        frame of the map whose first keyframe it is, at pose ``T0_cw`` (:meth:`_into`)."""
+        if self._anchor is None or self._anchor[0] != first_index:
+            return []
+        into = self._into(T0_cw)
+        earlier = [(ts, T_wc) for i, ts, T_wc in self.poses if i < first_index]
+        if not earlier:
+            return []
+        return list(zip([ts for ts, _ in earlier], into.poses_wc(np.array([T for _, T in earlier]))))
+
+    def _into(self, T0_cw: np.ndarray) -> Similarity:
+        """The panorama's frame -> that of the map whose first keyframe, at pose ``T0_cw``, is the anchor: rotated
+        as the anchor was, its centre on that keyframe's (the panorama's centre). A reported pose has no
+        translation, so no scale is needed."""
+        assert self._anchor is not None
+        return Similarity(T0_cw[:3, :3].T @ self._anchor[1][:3, :3], -T0_cw[:3, :3].T @ T0_cw[:3, 3], 1.0)
+
+    def _reported(self, index: int, timestamp: float, T_cw: np.ndarray) -> None:
+        self.poses.append((index, timestamp, se3.inv(T_cw)))
+        self._latest = (index, T_cw)
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=False, cancel_futures=True)
+
+    def _add_keyframe(self, pyramid: Pyramid, timestamp: float, T_cw: np.ndarray, later: bool = False) -> None:
+        """A panorama keyframe (rays from its corners; no mapper thread serves this map): integrated at once, or
+        ``later`` in the background where frames keep coming (one at a time)."""
+        mapper = self.mapper
+        assert mapper is not None
+        none = np.zeros(0, np.int64)
+        request = KeyframeRequest(pyramid, T_cw, timestamp, none, np.zeros((0, 2)), none, self._depth, 0.0, True)
+        if later and self._pool is not None:
+            self._job = self._pool.submit(mapper.add_keyframe, request, True)
+        else:
+            mapper.add_keyframe(request, now=True)
+
+
+def _about_centre(T_cw: np.ndarray) -> np.ndarray:
+    """The rotation-only pose about the panorama's centre (the origin): Gauglitz §4.3, a panorama group shares
+    one centre; the translation within t_max the tracker allows has no scale here."""
+    T = T_cw.copy()
+    T[:3, 3] = 0.0
+    return T
