@@ -54,6 +54,7 @@ class RotationStart:
         self.tracker = Tracker(camera, cfg)
         self.poses: list[tuple[int, float, np.ndarray]] = []  # (index, timestamp, T_wc) reported
         self.translated = False  # a translation showed since the panorama began
+        self._seen = 0  # frames in a row that showed one
         self._poor = False  # the newest frame was tracked with poor quality
         self._anchor: tuple[int, np.ndarray] | None = None  # (index, T_cw) where the trails start
         self._latest: tuple[int, np.ndarray] | None = None  # (index, T_cw) of the newest frame reported
@@ -68,7 +69,7 @@ class RotationStart:
         """Frame ``index`` is the first panorama keyframe, at the identity, and tracking starts from it; unless it
         has fewer corners than ``init.min_trails`` (as trails, a later frame tries again): then None."""
         self.mapper = MapMaker(self.camera, self.cfg)
-        self.poses, self._anchor, self.translated = [], None, False
+        self.poses, self._anchor, self.translated, self._seen = [], None, False, 0
         T = np.eye(4)
         self._add_keyframe(pyramid, timestamp, T)
         if self.mapper.map.n_points_total < self.cfg.init.min_trails:
@@ -92,9 +93,13 @@ class RotationStart:
         if res is None or res.quality != Quality.GOOD:
             return None
         self._tracked.append((res.frame_index, res.T_cw))
-        if not self.translated and self._translation_seen(res):
-            self.translated = True
-            log.info("frame %d: a translation; poses withheld until the map exists", res.frame_index)
+        if not self.translated:
+            # As any other evidence about a pose (a relocalisation, a keyframe), a translation counts once seen in
+            # reloc.confirm_frames frames in a row: one frame's homography can mistake a hand's jitter for one.
+            self._seen = self._seen + 1 if self._translation_seen(res) else 0
+            self.translated = self._seen >= self.cfg.reloc.confirm_frames
+            if self.translated:
+                log.info("frame %d: a translation; poses withheld until the map exists", res.frame_index)
         if self.translated:
             return None
         T = _about_centre(res.T_cw)
@@ -134,7 +139,7 @@ class RotationStart:
                 log.info("the rotation-only poses of %d frames cannot be joined to frame %d", len(self.poses), index)
             T = self.begin(pyramid, index, timestamp)
         self._anchor = None if T is None else (index, T)
-        self.translated = False
+        self.translated, self._seen = False, 0
 
     def pose_of(self, index: int) -> np.ndarray | None:
         """T_cw of frame ``index`` if it was reported."""
