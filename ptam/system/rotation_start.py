@@ -46,9 +46,10 @@ class RotationStart:
     def __init__(self, camera: CameraModel, cfg: Config, background: bool):
         self.camera = camera
         self.cfg = cfg
-        # Keyframes are integrated beside the tracker where frames keep coming (the first one, in begin(), at once).
+        # Keyframes and the model-free check run beside the tracker where frames keep coming (inline in sync).
         self._pool = ThreadPoolExecutor(1, thread_name_prefix="ptam-panorama") if background else None
-        self._job: Future | None = None
+        self._job: Future | None = None  # a keyframe being integrated
+        self._check: tuple[int, Future] | None = None  # (frame, its model-free check) being run
         self.mapper: MapMaker | None = None  # keyframes of rays only
         # Its own tracker: after a loss the system's confirms relocalisations into set-aside tracks meanwhile.
         self.tracker = Tracker(camera, cfg)
@@ -69,7 +70,7 @@ class RotationStart:
         """Frame ``index`` is the first panorama keyframe, at the identity, and tracking starts from it; unless it
         has fewer corners than ``init.min_trails`` (as trails, a later frame tries again): then None."""
         self.mapper = MapMaker(self.camera, self.cfg)
-        self.poses, self._anchor, self.translated, self._seen = [], None, False, 0
+        self.poses, self._anchor, self.translated, self._seen, self._check = [], None, False, 0, None
         T = np.eye(4)
         self._add_keyframe(pyramid, timestamp, T)
         if self.mapper.map.n_points_total < self.cfg.init.min_trails:
@@ -94,12 +95,7 @@ class RotationStart:
             return None
         self._tracked.append((res.frame_index, res.T_cw))
         if not self.translated:
-            # As any other evidence about a pose (a relocalisation, a keyframe), a translation counts once seen in
-            # reloc.confirm_frames frames in a row: one frame's homography can mistake a hand's jitter for one.
-            self._seen = self._seen + 1 if self._translation_seen(res) else 0
-            self.translated = self._seen >= self.cfg.reloc.confirm_frames
-            if self.translated:
-                log.info("frame %d: a translation; poses withheld until the map exists", res.frame_index)
+            self._check_translation(res)
         if self.translated:
             return None
         T = _about_centre(res.T_cw)
@@ -110,11 +106,33 @@ class RotationStart:
             self._add_keyframe(res.pyramid, res.timestamp, T, later=True)
         return T
 
-    def _translation_seen(self, res: TrackResult) -> bool:
+    def _check_translation(self, res: TrackResult) -> None:
+        """The model-free check of this frame, in the background where frames keep coming (one at a time: a frame
+        whose check would wait is not checked; its result counts when it is ready, a frame or two later), else
+        at once. As any other evidence about a pose (a relocalisation, a keyframe), a translation counts once
+        seen in ``reloc.confirm_frames`` checked frames in a row: one frame's homography can take a hand's jitter
+        at the end of a pan for one."""
+        assert self.mapper is not None and self.mapper.snapshot is not None
+        if self._pool is None:
+            self._count(res.frame_index, self._translation_seen(res, self.mapper.snapshot))
+            return
+        if self._check is not None and self._check[1].done():
+            index, check = self._check
+            self._check = None
+            self._count(index, check.result())
+        if self._check is None:
+            self._check = (res.frame_index, self._pool.submit(self._translation_seen, res, self.mapper.snapshot))
+
+    def _count(self, index: int, seen: bool) -> None:
+        self._seen = self._seen + 1 if seen else 0
+        self.translated = self._seen >= self.cfg.reloc.confirm_frames
+        if self.translated:
+            log.info("frame %d: a translation; poses withheld until the map exists", index)
+
+    def _translation_seen(self, res: TrackResult, snap) -> bool:
         """Gauglitz §4.1–§4.2's model-free estimation: the rays found in the frame against where the keyframe that
         most of them come from saw them (every panorama keyframe shares the centre), E and H against a rotation."""
-        assert self.mapper is not None and self.mapper.snapshot is not None
-        snap, m = self.mapper.snapshot, res.measurements
+        m = res.measurements
         ids = m.point_ids[m.found]
         if not len(ids):
             return False
@@ -139,7 +157,7 @@ class RotationStart:
                 log.info("the rotation-only poses of %d frames cannot be joined to frame %d", len(self.poses), index)
             T = self.begin(pyramid, index, timestamp)
         self._anchor = None if T is None else (index, T)
-        self.translated, self._seen = False, 0
+        self.translated, self._seen, self._check = False, 0, None
 
     def pose_of(self, index: int) -> np.ndarray | None:
         """T_cw of frame ``index`` if it was reported."""

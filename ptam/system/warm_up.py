@@ -3,8 +3,9 @@
 numba's ``cache=True`` kernels are compiled once per machine but still loaded on their first call; the tracker's
 first frames each touch a few more of them (~0.2 s at frame 0, ~50 ms at the first tracked frame), which at
 30 Hz drops frames just when initialisation and the first pose matter most. ``warm_up`` runs one frame of every
-per-frame path — pyramid, trails, rotation estimate, point tracking against a one-keyframe map — on a synthetic
-image, before the source starts delivering.
+per-frame path — pyramid, trails, rotation estimate, point tracking against a one-keyframe map, and before the
+map the panorama's first keyframe and the model-free check — on a synthetic image, before the source starts
+delivering.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from ..map.keyframe import KeyFrame
 from ..map.map import SRC_ROOT, Map
 from ..tracking.tracker import Tracker
 from ..tracking.trails import TrailTracker
+from .rotation_start import RotationStart
 
 _TEXTURE_BLUR_PX = 1.5  # corners need some smoothness; any texture that FAST fires on serves
 _DEPTH = 1.0  # the synthetic points sit on a fronto-parallel plane this far away (map units)
@@ -45,3 +47,8 @@ def warm_up(camera: CameraModel, cfg: Config) -> None:
     tracker.track(image, snapshot)
     tracker.set_pose(np.eye(4), recovered=True)  # the enlarged coarse stage of a recovered pose
     tracker.track(image, snapshot)
+    ms = cfg.model_selection
+    if ms.enabled and ms.initialisation_free:  # the panorama before the map: rays, and the model-free check
+        start = RotationStart(camera, cfg, background=False)
+        if start.begin(pyramid, 0, 0.0) is not None:
+            start.report(start.track(image, pyramid))
