@@ -123,26 +123,53 @@ def estimate_two_view(camera, xy0: np.ndarray, xy1: np.ndarray, init_cfg) -> Two
     return TwoViewResult(T, X0, inl, parallax, model)
 
 
+@dataclass(frozen=True)
+class _Fits:
+    """E and H fitted to the same matches (None where a fit failed), their inlier masks, and the squared
+    first-order errors of every match under each fitted relation, in the order E, H."""
+
+    E: np.ndarray | None
+    mask_e: np.ndarray | None
+    H: np.ndarray | None
+    mask_h: np.ndarray | None
+    e2: dict[str, np.ndarray]
+
+
+def _fit_relations(r0: np.ndarray, r1: np.ndarray, threshold: float, c, method: str) -> _Fits:
+    """E (five-point) and H fitted robustly by OpenCV's USAC ``method`` to unit-plane matches, within
+    ``threshold`` (unit plane)."""
+    usac = _USAC[method]
+    cv2.setRNGSeed(c.ransac_seed)  # deterministic runs (sync-mode tests compare trajectories bit for bit)
+    E_, mask_e = cv2.findEssentialMat(r0, r1, np.eye(3), method=usac, prob=c.ransac_confidence, threshold=threshold)
+    H_, mask_h = cv2.findHomography(r0, r1, usac, threshold, maxIters=10000, confidence=c.ransac_confidence)
+    E = np.asarray(E_) if E_ is not None and E_.shape == (3, 3) else None  # several solutions: none kept
+    H = np.asarray(H_) if H_ is not None and H_.shape == (3, 3) else None
+    e2 = {}
+    if E is not None:
+        e2["E"] = sampson_sq(E, r0, r1)
+    if H is not None:
+        e2["H"] = homography_sampson_sq(H, r0, r1)
+    return _Fits(E, mask_e, H, mask_h, e2)
+
+
+def _noise_sigma(e2_essential: np.ndarray, c, f: float) -> float:
+    """GRIC needs the noise σ (Torr 1998; Gauglitz §4.2 estimates it by EM): the general model fits planar and
+    3-D scenes alike, so the median of its squared errors, over the median of χ²₁, estimates it (never below
+    ``init.gric_min_sigma_px``)."""
+    return max(float(np.sqrt(np.median(e2_essential) / _CHI2_1_MEDIAN)), c.gric_min_sigma_px / f)
+
+
 def select_model(r0: np.ndarray, r1: np.ndarray, sigma: float, c, f: float) -> tuple:
     """E (five-point) and H fitted robustly to unit-plane matches, the one with the lower GRIC chosen
     (Gauglitz §6.1): (model, E, E's inlier mask, H, H's inlier mask). ``sigma``: the RANSAC threshold (unit
     plane); ``f``: the focal length in pixels."""
-    method = _USAC[c.essential_method]
-    cv2.setRNGSeed(c.ransac_seed)  # deterministic runs (sync-mode tests compare trajectories bit for bit)
-    E, mask_e = cv2.findEssentialMat(r0, r1, np.eye(3), method=method, prob=c.ransac_confidence, threshold=sigma)
-    H, mask_h = cv2.findHomography(r0, r1, method, sigma, maxIters=10000, confidence=c.ransac_confidence)
-    cands = {}
-    if E is not None and E.shape == (3, 3):
-        e2 = sampson_sq(E, r0, r1)
-        # GRIC needs the noise σ (Torr 1998; Gauglitz §4.2 estimates it by EM): the general model fits planar
-        # and 3-D scenes alike, so the median of its residuals, over the median of χ²₁, estimates it.
-        sigma = max(float(np.sqrt(np.median(e2) / _CHI2_1_MEDIAN)), c.gric_min_sigma_px / f) if len(e2) else sigma
-        cands["E"] = gric(e2, sigma, "E", c.gric_lambda3)
-    if H is not None and H.shape == (3, 3):
-        cands["H"] = gric(homography_sampson_sq(H, r0, r1), sigma, "H", c.gric_lambda3)
+    fits = _fit_relations(r0, r1, sigma, c, c.essential_method)
+    if "E" in fits.e2 and len(fits.e2["E"]):
+        sigma = _noise_sigma(fits.e2["E"], c, f)
+    cands = {k: gric(v, sigma, k, c.gric_lambda3) for k, v in fits.e2.items()}
     if not cands:
         raise InitFailure("neither an essential matrix nor a homography fits the trails")
-    return min(cands, key=lambda k: cands[k]), E, mask_e, H, mask_h
+    return min(cands, key=lambda k: cands[k]), fits.E, fits.mask_e, fits.H, fits.mask_h
 
 
 def rotation_explains(camera, xy0: np.ndarray, xy1: np.ndarray, init_cfg, method: str, t_max_rel: float) -> bool:
@@ -160,29 +187,26 @@ def rotation_explains(camera, xy0: np.ndarray, xy1: np.ndarray, init_cfg, method
     r0 = camera.unproject(np.asarray(xy0, np.float64))
     r1 = camera.unproject(np.asarray(xy1, np.float64))
     f = 0.5 * (camera.fx + camera.fy)
-    thr, usac = c.essential_threshold_px / f, _USAC[method]
-    cv2.setRNGSeed(c.ransac_seed)
-    E, mask_e = cv2.findEssentialMat(r0, r1, np.eye(3), method=usac, prob=c.ransac_confidence, threshold=thr)
-    H, mask_h = cv2.findHomography(r0, r1, usac, thr, confidence=c.ransac_confidence)
-    fits = [m.ravel().astype(bool) for m, M in ((mask_e, E), (mask_h, H)) if M is not None and M.shape == (3, 3)]
-    if not fits:
+    fits = _fit_relations(r0, r1, c.essential_threshold_px / f, c, method)
+    if not fits.e2:
         return True
-    R = _best_rotation(r0[np.logical_or.reduce(fits)], r1[np.logical_or.reduce(fits)])
-    e2 = {"R": homography_sampson_sq(R, r0, r1)}
-    if E is not None and E.shape == (3, 3):
-        e2["E"] = sampson_sq(E, r0, r1)
-    if H is not None and H.shape == (3, 3):
-        e2["H"] = homography_sampson_sq(H, r0, r1)
+    masks = [
+        np.asarray(m).ravel().astype(bool) for m, M in ((fits.mask_e, fits.E), (fits.mask_h, fits.H)) if M is not None
+    ]
+    inl = np.logical_or.reduce(masks)
+    e2 = {"R": homography_sampson_sq(_best_rotation(r0[inl], r1[inl]), r0, r1), **fits.e2}
     ref = e2["E"] if "E" in e2 else e2["H"] / (_CHI2_2_MEDIAN / _CHI2_1_MEDIAN)
-    sigma = max(float(np.sqrt(np.median(ref) / _CHI2_1_MEDIAN)), c.gric_min_sigma_px / f)
+    sigma = _noise_sigma(ref, c, f)
     score = {k: gric(v, sigma, k, c.gric_lambda3) for k, v in e2.items()}
     best = min(score, key=lambda k: score[k])
     if best == "H":
-        _, _, ts, _ = cv2.decomposeHomographyMat(H, np.eye(3))
+        assert fits.H is not None
+        _, _, ts, _ = cv2.decomposeHomographyMat(fits.H, np.eye(3))
         return min(float(np.linalg.norm(t)) for t in ts) <= t_max_rel
     if best == "E":
-        inl = mask_e.ravel().astype(bool)
-        _, R_e, t, _ = cv2.recoverPose(E, r0, r1, np.eye(3), mask=mask_e.astype(np.uint8).copy())
+        assert fits.E is not None and fits.mask_e is not None
+        inl = fits.mask_e.ravel().astype(bool)
+        _, R_e, t, _ = cv2.recoverPose(fits.E, r0, r1, np.eye(3), mask=fits.mask_e.astype(np.uint8).copy())
         X0, _ = _triangulate(se3.from_Rt(R_e, t.ravel()), r0[inl], r1[inl])  # depths in units of the translation
         depth = X0[:, 2][X0[:, 2] > 0]
         return len(depth) == 0 or 1.0 / float(np.median(depth)) <= t_max_rel

@@ -47,14 +47,14 @@ class Initialisation:
         key, self._key_pressed = self._key_pressed, False
         if pyramid is None:
             pyramid = Pyramid.build(frame.image, self.cfg.image)
-        init = self._init
-        res = self._track_rotation(frame, pyramid)
+        init, rot = self._init, self._init.rotation
+        res = None if rot is None else rot.follow(frame, pyramid)  # Gauglitz §4.3, §6: tracked from frame 0
+        if res is not None:
+            self.stats.track_ms.append(res.timings.total)
         n = init.advance(pyramid, index, ts) if init.started else None
-        if init.rotation is not None:
-            init.rotation.report(res)
-        idle = FrameOutcome(index, ts, INITIALISING, None, res)
-        if init.rotation is not None:
-            idle.panorama_T_cw = init.rotation.pose_of(index)
+        idle = FrameOutcome(
+            index, ts, INITIALISING, None, res, panorama_T_cw=None if rot is None else rot.pose_of(index)
+        )
         if n is None:
             fixed = self.init_frames
             if key if self.init_mode == InitMode.KEY else (fixed is None or index == fixed[0]):
@@ -72,20 +72,6 @@ class Initialisation:
             if built is not None:
                 return self._built(built, index, ts)
         return idle
-
-    def _track_rotation(self, frame, pyramid: Pyramid):
-        """Gauglitz §4.3, §6: the frame tracked in the panorama that precedes the map (the first frame begins
-        it); the tracker's result, or None."""
-        rot = self._init.rotation
-        if rot is None:
-            return None
-        if rot.mapper is None:
-            rot.begin(pyramid, int(frame.index), float(frame.timestamp))
-            return None
-        res = rot.track(frame, pyramid)
-        if res is not None:
-            self.stats.track_ms.append(res.timings.total)
-        return res
 
     def _second_keyframe_now(self, key: bool, index: int) -> bool:
         if self.init_mode == InitMode.KEY:
@@ -189,5 +175,5 @@ class Initialisation:
         """At the end of a run that never built a map: the poses tracked in the panorama are the trajectory."""
         rot = self._init.rotation
         if rot is not None and rot.poses and not self.mapper.initialised and not self.trajectory:
-            self.trajectory = [(ts, T_wc) for _, ts, T_wc in rot.poses]
+            self.trajectory = [(ts, se3.inv(T_cw)) for _, ts, T_cw in rot.poses]
             self.stats.tracked += len(self.trajectory)

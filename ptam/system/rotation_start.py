@@ -53,12 +53,11 @@ class RotationStart:
         self.mapper: MapMaker | None = None  # keyframes of rays only
         # Its own tracker: after a loss the system's confirms relocalisations into set-aside tracks meanwhile.
         self.tracker = Tracker(camera, cfg)
-        self.poses: list[tuple[int, float, np.ndarray]] = []  # (index, timestamp, T_wc) reported
+        self.poses: list[tuple[int, float, np.ndarray]] = []  # (index, timestamp, T_cw) reported
         self.translated = False  # a translation showed since the panorama began
         self._seen = 0  # frames in a row that showed one
         self._poor = False  # the newest frame was tracked with poor quality
         self._anchor: tuple[int, np.ndarray] | None = None  # (index, T_cw) where the trails start
-        self._latest: tuple[int, np.ndarray] | None = None  # (index, T_cw) of the newest frame reported
         self._tracked: deque[tuple[int, np.ndarray]] = deque(maxlen=cfg.init.max_history_frames)  # reported or not
         # The ray depth: where the stereo pair's assumed baseline gives the disparity that takes it (PTAM §6.1),
         # so the panorama is drawn at about the scale the first map will have; the tracker uses directions only.
@@ -78,33 +77,35 @@ class RotationStart:
             return None
         self.tracker.reset()
         self.tracker.set_pose(T)
-        self._reported(index, timestamp, T)
+        self.poses.append((index, timestamp, T))
         return T
 
-    def track(self, frame, pyramid: Pyramid) -> TrackResult | None:
+    def follow(self, frame, pyramid: Pyramid) -> TrackResult | None:
+        """One frame: the first begins the panorama; the others are tracked in it (the tracker's result) and
+        reported (:meth:`pose_of`) if tracked with good quality and, by the model-free check, still a rotation
+        about the panorama's centre. A reported frame whose view has turned ``model_selection.panorama_kf_travel``
+        of the image width from every keyframe's becomes one (§4.3)."""
         if self.mapper is None:
+            self.begin(pyramid, int(frame.index), float(frame.timestamp))
             return None
-        return self.tracker.track(frame, self.mapper.snapshot, pyramid)
+        res = self.tracker.track(frame, self.mapper.snapshot, pyramid)
+        self._poor = res.quality == Quality.POOR
+        if res.quality == Quality.GOOD:
+            self._report(res)
+        return res
 
-    def report(self, res: TrackResult | None) -> np.ndarray | None:
-        """The frame's pose T_cw if it is reported: tracked with good quality and, by the model-free check, still
-        a rotation about the panorama's centre; else None. A reported frame whose view has turned
-        ``model_selection.panorama_kf_travel`` of the image width from every keyframe's becomes one (§4.3)."""
-        self._poor = res is not None and res.quality == Quality.POOR
-        if res is None or res.quality != Quality.GOOD:
-            return None
+    def _report(self, res: TrackResult) -> None:
         self._tracked.append((res.frame_index, res.T_cw))
         if not self.translated:
             self._check_translation(res)
         if self.translated:
-            return None
+            return
         T = _about_centre(res.T_cw)
-        self._reported(res.frame_index, res.timestamp, T)
+        self.poses.append((res.frame_index, res.timestamp, T))
         travel = self.cfg.model_selection.panorama_kf_travel * self.camera.width
         idle = self._job is None or self._job.done()
         if idle and res.keyframe.view_travel_px > travel and not (res.rapid_motion or res.in_doubt):
             self._add_keyframe(res.pyramid, res.timestamp, T, later=True)
-        return T
 
     def _check_translation(self, res: TrackResult) -> None:
         """The model-free check of this frame, in the background where frames keep coming (one at a time: a frame
@@ -160,8 +161,8 @@ class RotationStart:
         self.translated, self._seen, self._check = False, 0, None
 
     def pose_of(self, index: int) -> np.ndarray | None:
-        """T_cw of frame ``index`` if it was reported."""
-        return self._latest[1] if self._latest is not None and self._latest[0] == index else None
+        """T_cw of frame ``index`` if it was the newest reported."""
+        return self.poses[-1][2] if self.poses and self.poses[-1][0] == index else None
 
     def tracked_at(self, index: int) -> bool:
         """Frame ``index`` is the newest tracked with good quality (the tracker's state is this frame's)."""
@@ -183,10 +184,10 @@ class RotationStart:
         if self._anchor is None or self._anchor[0] != first_index:
             return []
         into = self._into(T0_cw)
-        earlier = [(ts, T_wc) for i, ts, T_wc in self.poses if i < first_index]
+        earlier = [(ts, T_cw) for i, ts, T_cw in self.poses if i < first_index]
         if not earlier:
             return []
-        return list(zip([ts for ts, _ in earlier], into.poses_wc(np.array([T for _, T in earlier]))))
+        return list(zip([ts for ts, _ in earlier], into.poses_wc(se3.inv(np.array([T for _, T in earlier])))))
 
     def _into(self, T0_cw: np.ndarray) -> Similarity:
         """The panorama's frame -> that of the map whose first keyframe, at pose ``T0_cw``, is the anchor: rotated
@@ -194,10 +195,6 @@ class RotationStart:
         translation, so no scale is needed."""
         assert self._anchor is not None
         return Similarity(T0_cw[:3, :3].T @ self._anchor[1][:3, :3], -T0_cw[:3, :3].T @ T0_cw[:3, 3], 1.0)
-
-    def _reported(self, index: int, timestamp: float, T_cw: np.ndarray) -> None:
-        self.poses.append((index, timestamp, se3.inv(T_cw)))
-        self._latest = (index, T_cw)
 
     def close(self) -> None:
         if self._pool is not None:

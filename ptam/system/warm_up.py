@@ -51,4 +51,4 @@ def warm_up(camera: CameraModel, cfg: Config) -> None:
     if ms.enabled and ms.initialisation_free:  # the panorama before the map: rays, and the model-free check
         start = RotationStart(camera, cfg, background=False)
         if start.begin(pyramid, 0, 0.0) is not None:
-            start.report(start.track(image, pyramid))
+            start.follow(image, pyramid)
