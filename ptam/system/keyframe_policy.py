@@ -135,7 +135,7 @@ class KeyframePolicy:
         adjusted it locally (PTAM §6.3), then runs on beside the global adjustment and the data-association
         refinement; ``realtime`` (live) never waits."""
         deadline = time.perf_counter() + self.cfg.system.mapper_wait_max_s
-        while (self.mapper.queue or not self.mapper.recent_converged) and time.perf_counter() < deadline:
+        while not self.mapper.keyframes_settled() and time.perf_counter() < deadline:
             if self._mapper_error is not None or self._thread is None:
                 return
             self._stepped.wait(self.cfg.system.mapper_idle_wait_s)
