@@ -18,5 +18,6 @@ class ModelSelectionConfig:
     inlier_ratio_bounds: Annotated[list[float], Range("(0, 1)", length=2)]
     panorama_kf_travel: Annotated[float, Range("(0, 1]")]
     turn_keyframes_unspaced: bool
+    keyframe_by_angle: bool
     initialisation_free: bool
     rotation_check_method: EssentialMethod

@@ -54,7 +54,7 @@ class KeyframePolicy:
         elif res.pose_model == PoseModel.ROTATION:
             due = False
         else:
-            due = turned or self.mapper.need_new_keyframe(kf.nearest_keyframe_distance, kf.mean_scene_depth)
+            due = turned or self._baseline_grown(res)
         if (
             self.localize_only
             or res.rapid_motion
@@ -94,6 +94,31 @@ class KeyframePolicy:
             if self.mode == RunMode.ASYNC and self.cfg.system.async_waits_for_local_ba:
                 self._wait_for_mapper()
         return True
+
+    def _baseline_grown(self, res) -> bool:
+        """Enough parallax for an SfM keyframe. Gauglitz et al. §4.3: the median triangulation angle of the frame's
+        inliers between the nearest keyframe's centre and the frame's exceeds the first stereo pair's (baseline over
+        depth, PTAM's "wiggle", times ``mapper.kf_dist_wiggle_mult``); a camera moving along its view gains distance
+        but little angle. PTAM §6.2 (``model_selection.keyframe_by_angle: false``): distance over mean depth."""
+        kf = res.keyframe
+        if not self.cfg.model_selection.keyframe_by_angle:
+            return self.mapper.need_new_keyframe(kf.nearest_keyframe_distance, kf.mean_scene_depth)
+        snap = self.mapper.snapshot
+        meas = res.measurements
+        if snap is None or kf.nearest_keyframe < 0:
+            return False
+        ids = meas.point_ids[meas.found & meas.inlier]
+        ids = ids[~snap.ray[ids]]
+        if not len(ids):
+            return False
+        X = snap.X[ids]
+        to_frame = X - se3.inv(res.T_cw)[:3, 3]
+        to_keyframe = X - snap.camera_centres[kf.nearest_keyframe]
+        cos = np.einsum("ij,ij->i", to_frame, to_keyframe) / (
+            np.linalg.norm(to_frame, axis=1) * np.linalg.norm(to_keyframe, axis=1)
+        )
+        angle = float(np.median(np.arccos(np.clip(cos, -1.0, 1.0))))
+        return angle > self.cfg.mapper.kf_dist_wiggle_mult * self.mapper.wiggle_depth_normalised
 
     def _spaced(self, frames_since_keyframe: int, turned: bool) -> bool:
         """Enough time since the last keyframe: PTAM §6.2's twenty frames; or, for a view turning away from every
