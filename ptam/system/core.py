@@ -20,6 +20,7 @@ relocalising (PTAM code: only the normal tracking branch adds keyframes).
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import threading
 import time
@@ -42,6 +43,7 @@ from ..vocabulary import InitMode, Quality, RunMode, TrackingState
 from .frame_outcome import FrameOutcome
 from .initialisation import Initialisation
 from .keyframe_policy import KeyframePolicy
+from .ray_check import RayCheck
 from .run_stats import RunStats
 from .stereo_start import StereoStart
 from .tracks import Tracks
@@ -83,6 +85,7 @@ class System(Initialisation, KeyframePolicy, Tracks):
         self.localize_only = localize_only
         self.tracker = Tracker(camera, cfg)
         self.relocaliser = Relocaliser(camera, cfg)
+        self._ray_check = RayCheck(camera, cfg)
         self.mapper = MapMaker(camera, cfg, map_)
         self._init_tracks()
         self._init = StereoStart(camera, cfg, background=self._build_in_background())
@@ -231,6 +234,9 @@ class System(Initialisation, KeyframePolicy, Tracks):
         self.stats.track_ms.append(res.timings.total)
         if relocalising:
             return self._confirm(res)
+        if self._ray_check.translated(res, snapshot):  # Gauglitz §4.2: rays alone cannot follow it
+            log.info("frame %d: a translation with only rays in view; the track is lost", res.frame_index)
+            res = dataclasses.replace(res, quality=Quality.BAD, lost=True)
         if res.lost and self.state != LOST:
             self.stats.lost_events += 1
         self.state = LOST if res.lost else _tracked_state(res)
@@ -259,7 +265,7 @@ class System(Initialisation, KeyframePolicy, Tracks):
         tracked (a wrong pose is worse than a lost frame); then they all are. A frame that does not confirm sends
         the system back to relocalising."""
         assert self._confirming is not None
-        if not confirms(res, self.cfg.reloc):
+        if not confirms(res, self.cfg.reloc) or self._ray_check.refutes(res, self.mapper.snapshot):
             self._confirming = None
             self.state = RELOCALISING
             return FrameOutcome(res.frame_index, res.timestamp, RELOCALISING, None, res)

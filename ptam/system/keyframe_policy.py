@@ -15,6 +15,7 @@ from ..geometry import se3
 from ..mapping.map_maker import KeyframeRequest, MapMaker
 from ..tracking.tracker import Tracker
 from ..vocabulary import PoseModel, Quality, RunMode
+from .ray_check import RayCheck
 from .run_stats import RunStats
 
 
@@ -29,6 +30,7 @@ class KeyframePolicy:
     tracker: Tracker
     stats: RunStats
     _good_streak: int
+    _ray_check: RayCheck
     _wake: threading.Event
     _stepped: threading.Event
     _mapper_error: BaseException | None
@@ -59,6 +61,7 @@ class KeyframePolicy:
             self.localize_only
             or res.rapid_motion
             or res.in_doubt
+            or self._ray_check.doubting
             or self._good_streak < self.cfg.reloc.confirm_frames
             or not (
                 res.quality == Quality.GOOD

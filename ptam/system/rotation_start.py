@@ -8,10 +8,8 @@ from every keyframe adds panorama keyframes (§4.3). Meanwhile PTAM's trails run
 initialisation starts (the *anchor*), and the first SfM group is triangulated from them once their two-view GRIC
 selects a translating relation with enough parallax (:mod:`.stereo_start`, :mod:`ptam.mapping.two_view`).
 
-A rotation-only pose cannot represent a translation, and on a planar desk a sideways move looks like a pan to
-first order. So every frame is also checked model-free (§4.1–§4.2): the rays found in it against where their
-keyframe saw them, E and H against a rotation by GRIC, and a translating winner measured against the rotation
-model's t_max (:func:`~ptam.mapping.two_view.rotation_explains`). Once a translation shows, the poses are
+A rotation-only pose cannot represent a translation, so every frame is also checked model-free (§4.1–§4.2,
+:func:`.ray_check.rays_translate`). Once a translation shows, the poses are
 withheld (a wrong pose is worse than none) until the SfM group exists; the frames between its two keyframes are
 then posed against it (:meth:`.stereo_start.StereoStart.adopt`), and the poses reported before its first
 keyframe are moved into its frame, about that keyframe's centre, which the panorama shares. The tracker carries
@@ -30,12 +28,12 @@ from ..camera.model import CameraModel
 from ..config import Config
 from ..geometry import se3
 from ..geometry.sim3 import Similarity
-from ..image.pyramid import Pyramid, level_to_zero
+from ..image.pyramid import Pyramid
 from ..mapping.map_maker import KeyframeRequest, MapMaker
-from ..mapping.two_view import rotation_explains
 from ..tracking.track_result import TrackResult
 from ..tracking.tracker import Tracker
 from ..vocabulary import Quality
+from .ray_check import rays_translate
 
 log = logging.getLogger("ptam")
 
@@ -62,8 +60,6 @@ class RotationStart:
         # The ray depth: where the stereo pair's assumed baseline gives the disparity that takes it (PTAM §6.1),
         # so the panorama is drawn at about the scale the first map will have; the tracker uses directions only.
         self._depth = cfg.init.baseline_m / cfg.init.auto_min_disparity_rel_focal
-        # Gauglitz §6.2: the rotation-only model holds up to t_max = α_max·depth, α_max = r_fine / f (as the tracker's).
-        self._t_max_rel = cfg.tracker.fine_radius_px / camera.fx
 
     def begin(self, pyramid: Pyramid, index: int, timestamp: float) -> np.ndarray | None:
         """Frame ``index`` is the first panorama keyframe, at the identity, and tracking starts from it; unless it
@@ -115,33 +111,23 @@ class RotationStart:
         at the end of a pan for one."""
         assert self.mapper is not None and self.mapper.snapshot is not None
         if self._pool is None:
-            self._count(res.frame_index, self._translation_seen(res, self.mapper.snapshot))
+            self._count(res.frame_index, rays_translate(self.camera, self.cfg, res, self.mapper.snapshot))
             return
         if self._check is not None and self._check[1].done():
             index, check = self._check
             self._check = None
             self._count(index, check.result())
         if self._check is None:
-            self._check = (res.frame_index, self._pool.submit(self._translation_seen, res, self.mapper.snapshot))
+            self._check = (
+                res.frame_index,
+                self._pool.submit(rays_translate, self.camera, self.cfg, res, self.mapper.snapshot),
+            )
 
     def _count(self, index: int, seen: bool) -> None:
         self._seen = self._seen + 1 if seen else 0
         self.translated = self._seen >= self.cfg.reloc.confirm_frames
         if self.translated:
             log.info("frame %d: a translation; poses withheld until the map exists", index)
-
-    def _translation_seen(self, res: TrackResult, snap) -> bool:
-        """Gauglitz §4.1–§4.2's model-free estimation: the rays found in the frame against where the keyframe that
-        most of them come from saw them (every panorama keyframe shares the centre), E and H against a rotation."""
-        m = res.measurements
-        ids = m.point_ids[m.found]
-        if not len(ids):
-            return False
-        kf = snap.source_kf[ids]
-        sel = kf == np.bincount(kf).argmax()
-        xy0 = level_to_zero(snap.source_xy[ids[sel]], snap.source_level[ids[sel]])
-        method = self.cfg.model_selection.rotation_check_method
-        return not rotation_explains(self.camera, xy0, m.xy[m.found][sel], self.cfg.init, method, self._t_max_rel)
 
     def awaits(self, index: int) -> bool:
         """Whether trails that would start at frame ``index`` should wait for a later frame: this one was tracked

@@ -38,6 +38,7 @@ from ..tracking.tracker import Tracker
 from ..vocabulary import TrackingState
 from .frame_outcome import FrameOutcome
 from .merge_search import MergeSearch
+from .ray_check import RayCheck
 from .run_stats import RunStats
 from .stereo_start import StereoStart
 
@@ -79,6 +80,7 @@ class Tracks:
     _init: StereoStart
     _confirming: list | None
     _good_streak: int
+    _ray_check: RayCheck
 
     def _init_tracks(self) -> None:
         self.track_id = 0
@@ -147,7 +149,7 @@ class Tracks:
             self._candidate = (reloc[0], [])
         t, poses = self._candidate
         res = self.tracker.track(frame, t.mapper.snapshot, pyramid)
-        if not confirms(res, self.cfg.reloc):
+        if not confirms(res, self.cfg.reloc) or self._ray_check.refutes(res, t.mapper.snapshot):
             self._candidate = None
             return None
         poses.append((res.timestamp, se3.inv(res.T_cw)))
