@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ptam.geometry import so3
-from ptam.mapping.gric import homography_sampson_sq, sampson_sq
+from ptam.mapping.gric import em_noise, homography_sampson_sq, sampson_sq
 from ptam.mapping.two_view import select_model
 
 F = 500.0  # focal length in pixels: noise is given in pixels, errors are on the unit plane
@@ -54,3 +54,18 @@ def test_gric_picks_h_on_rotation_and_far_plane_and_e_on_a_translating_scene(cfg
     assert select_model(*rotation, sigma, c, F)[0] == "H"
     assert select_model(*far_plane, sigma, c, F)[0] == "H"
     assert select_model(*scene, sigma, c, F)[0] == "E"
+
+
+@pytest.mark.parametrize("dim", [1, 2])
+@pytest.mark.parametrize("sigma_px, inliers", [(0.5, 0.9), (1.0, 0.7), (2.0, 0.5)])
+def test_em_recovers_the_noise_and_the_inlier_ratio_of_a_mixture(cfg, dim, sigma_px, inliers):
+    """Gauglitz §4.2: Gaussian inliers and outliers uniform over the search region (S = 20 px). With half the
+    matches wrong, the median of the errors (what Torr's σ uses) is an outlier's; EM is not misled."""
+    rng = np.random.default_rng(dim)
+    n, S = 2000, 20.0
+    k = int(n * inliers)
+    e = np.concatenate([rng.normal(0, sigma_px, (k, dim)), rng.uniform(-S / 2, S / 2, (n - k, dim))])
+    ms = cfg.model_selection
+    sigma2, gamma = em_noise((e**2).sum(axis=1), dim, S**dim, ms.inlier_ratio_bounds, ms.min_sigma**2, ms.em_iterations)
+    assert abs(np.sqrt(sigma2) - sigma_px) < 0.1 * sigma_px
+    assert abs(gamma - inliers) < 0.05

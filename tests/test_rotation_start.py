@@ -58,13 +58,17 @@ def test_the_trails_tell_a_rotation_from_a_translation(cfg, lens, noise_px):
     side = np.array([0.05, 0.0, 0.0])
     mimic = so3.exp(np.array([0.0, -0.05, 0.0]))  # a pan of atan(5 cm / 1 m) the other way
     assert rotation_explains(
-        camera, *_views(camera, scene, R, np.zeros(3), noise_px, 3), cfg.init, "default", T_MAX_REL
+        camera, *_views(camera, scene, R, np.zeros(3), noise_px, 3), cfg.init, cfg.model_selection, "default", T_MAX_REL
     )
     jitter = np.array([0.003, 0.002, 0.0])
-    assert rotation_explains(camera, *_views(camera, scene, R, jitter, noise_px, 4), cfg.init, "default", T_MAX_REL)
-    assert not rotation_explains(camera, *_views(camera, scene, R, side, noise_px, 5), cfg.init, "default", T_MAX_REL)
+    assert rotation_explains(
+        camera, *_views(camera, scene, R, jitter, noise_px, 4), cfg.init, cfg.model_selection, "default", T_MAX_REL
+    )
     assert not rotation_explains(
-        camera, *_views(camera, desk, mimic, side, noise_px, 6), cfg.init, "default", T_MAX_REL
+        camera, *_views(camera, scene, R, side, noise_px, 5), cfg.init, cfg.model_selection, "default", T_MAX_REL
+    )
+    assert not rotation_explains(
+        camera, *_views(camera, desk, mimic, side, noise_px, 6), cfg.init, cfg.model_selection, "default", T_MAX_REL
     )
 
 

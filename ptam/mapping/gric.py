@@ -57,3 +57,40 @@ def homography_sampson_sq(H: np.ndarray, x0: np.ndarray, x1: np.ndarray) -> np.n
     with np.errstate(divide="ignore", invalid="ignore"):
         q = (S[:, 1, 1] * e[:, 0] ** 2 - 2 * S[:, 0, 1] * e[:, 0] * e[:, 1] + S[:, 0, 0] * e[:, 1] ** 2) / det
     return np.where(np.isfinite(q) & (det > 0), q, np.inf)
+
+
+# Gauglitz et al. §6.1, Table 2, with the frame area L×L (common to every model) dropped: the error dimension
+# D − d and the inlier volume c (px^(D−d)) in units of the disparity range Δ; the outlier volume v is S×S.
+RELATIONS = {"E": (1, 5), "H": (2, 8), "R": (2, 3)}  # (D − d, k); c = Δ for E, 1 otherwise
+CHI2_MEDIAN = {1: 0.4549, 2: 1.3863}  # medians of χ² with one and two degrees of freedom (the latter 2·ln 2)
+
+
+def em_noise(e2: np.ndarray, dim: int, outlier_volume: float, bounds, min_sigma2: float, iterations: int):
+    """σ² and inlier ratio γ of squared ``dim``-dimensional errors (px²) by EM (Gauglitz §4.2): Gaussian inliers,
+    outliers uniform over ``outlier_volume`` (v / c); γ clamped to ``bounds`` and σ² to ``min_sigma2`` (§8.1).
+    The tracker's 2-D kernel (``tracking.model_selection_kernels.em_noise``) is the same EM for absolute poses."""
+    lo, hi = bounds
+    e2 = np.minimum(np.asarray(e2, np.float64), 1e12)  # a degenerate match's infinite error: an outlier
+    sigma2 = max(float(np.median(e2)) / CHI2_MEDIAN[dim], min_sigma2)
+    gamma = 0.5 * (lo + hi)
+    for _ in range(iterations):
+        p_in = gamma * (2.0 * np.pi * sigma2) ** (-0.5 * dim) * np.exp(-e2 / (2.0 * sigma2))
+        r = p_in / (p_in + (1.0 - gamma) / outlier_volume)
+        gamma = min(max(float(r.mean()), lo), hi)
+        sigma2 = max(float((r * e2).sum()) / (dim * max(float(r.sum()), 1e-12)), min_sigma2)
+    return sigma2, gamma
+
+
+def gric_eq12(e2: np.ndarray, model: str, disparity_range: float, search: float, ms) -> float:
+    """Gauglitz et al. eq. (12) for a two-view relation (``model`` in RELATIONS) of squared errors ``e2`` (px²):
+    σ and γ by EM, the disparity range Δ expected for E and the side S of the search region in pixels. ``ms``:
+    the model-selection config (EM iterations, σ floor, γ bounds)."""
+    dim, k = RELATIONS[model]
+    c = disparity_range if model == "E" else 1.0
+    v_over_c = search * search / c
+    sigma2, gamma = em_noise(e2, dim, v_over_c, ms.inlier_ratio_bounds, ms.min_sigma**2, ms.em_iterations)
+    n = len(e2)
+    log_noise = dim * np.log(2.0 * np.pi * sigma2)
+    t_m = 2.0 * np.log(gamma / (1.0 - gamma) * v_over_c) - log_noise
+    rho = np.minimum(np.asarray(e2) / sigma2, t_m)
+    return float(rho.sum() + n * (log_noise + 2.0 * np.log(c / gamma)) + k * np.log(n))

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..geometry import se3, so3
 from ..geometry.triangulation import triangulate_two_view
-from .gric import gric, homography_sampson_sq, sampson_sq
+from .gric import CHI2_MEDIAN, gric, gric_eq12, homography_sampson_sq, sampson_sq
 
 _USAC = {
     "default": cv2.USAC_DEFAULT,
@@ -41,10 +41,6 @@ class TwoViewResult:
     inliers: np.ndarray  # (N,) bool over the input matches
     median_parallax_deg: float
     model: str  # "E" or "H", the GRIC choice
-
-
-_CHI2_1_MEDIAN = 0.4549  # the median of a χ² variable with one degree of freedom
-_CHI2_2_MEDIAN = 1.3863  # ... with two (2·ln 2): a homography's Sampson error has codimension 2
 
 
 def _triangulate(T: np.ndarray, r0: np.ndarray, r1: np.ndarray):
@@ -156,7 +152,7 @@ def _noise_sigma(e2_essential: np.ndarray, c, f: float) -> float:
     """GRIC needs the noise σ (Torr 1998; Gauglitz §4.2 estimates it by EM): the general model fits planar and
     3-D scenes alike, so the median of its squared errors, over the median of χ²₁, estimates it (never below
     ``init.gric_min_sigma_px``)."""
-    return max(float(np.sqrt(np.median(e2_essential) / _CHI2_1_MEDIAN)), c.gric_min_sigma_px / f)
+    return max(float(np.sqrt(np.median(e2_essential) / CHI2_MEDIAN[1])), c.gric_min_sigma_px / f)
 
 
 def select_model(r0: np.ndarray, r1: np.ndarray, sigma: float, c, f: float) -> tuple:
@@ -172,7 +168,7 @@ def select_model(r0: np.ndarray, r1: np.ndarray, sigma: float, c, f: float) -> t
     return min(cands, key=lambda k: cands[k]), fits.E, fits.mask_e, fits.H, fits.mask_h
 
 
-def rotation_explains(camera, xy0: np.ndarray, xy1: np.ndarray, init_cfg, method: str, t_max_rel: float) -> bool:
+def rotation_explains(camera, xy0: np.ndarray, xy1: np.ndarray, init_cfg, ms, method: str, t_max_rel: float) -> bool:
     """Model-free check for rotation-only motion (Gauglitz §4.2, §6): whether matches ``xy0`` -> ``xy1`` (level-0
     pixels) are a rotation within the rotation-only model's tolerance. An essential matrix and a homography are
     fitted robustly (OpenCV USAC, ``method``), the best rotation to their inliers (Kabsch), and GRIC picks among
@@ -180,7 +176,8 @@ def rotation_explains(camera, xy0: np.ndarray, xy1: np.ndarray, init_cfg, method
     a rotation while the translation stays within ``t_max_rel``, the [R|t ≤ t_max] model's t_max / depth (§6.2): for
     H, its translation over the plane's distance (the smallest of its decompositions: on a planar desk a sideways
     move looks like a pan to first order, so a rotation's residuals would hide it); for E, the
-    translation over the median depth of the matches it triangulates. σ as in :func:`select_model`."""
+    translation over the median depth of the matches it triangulates. Each model's σ and inlier ratio come from
+    EM, its score from eq. (12) (``ms``: the model-selection config)."""
     c = init_cfg
     if len(xy0) < c.min_matches:
         return True  # too few matches to tell: the tracker's own quality decides
@@ -195,9 +192,10 @@ def rotation_explains(camera, xy0: np.ndarray, xy1: np.ndarray, init_cfg, method
     ]
     inl = np.logical_or.reduce(masks)
     e2 = {"R": homography_sampson_sq(_best_rotation(r0[inl], r1[inl]), r0, r1), **fits.e2}
-    ref = e2["E"] if "E" in e2 else e2["H"] / (_CHI2_2_MEDIAN / _CHI2_1_MEDIAN)
-    sigma = _noise_sigma(ref, c, f)
-    score = {k: gric(v, sigma, k, c.gric_lambda3) for k, v in e2.items()}
+    # Eq. (12): the disparity range Δ that E expects is the one at which the rotation-only model gives way (t_max
+    # seen from its depth: α_max·f), and S the search region around a predicted feature (§6.1–§6.2).
+    delta = t_max_rel * f
+    score = {k: gric_eq12(v * f * f, k, delta, 2.0 * delta, ms) for k, v in e2.items()}
     best = min(score, key=lambda k: score[k])
     if best == "H":
         assert fits.H is not None

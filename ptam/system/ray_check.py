@@ -37,7 +37,7 @@ def rays_translate(camera: CameraModel, cfg: Config, res: TrackResult, snap) -> 
     xy0 = level_to_zero(snap.source_xy[ids[sel]], snap.source_level[ids[sel]])
     t_max_rel = cfg.tracker.fine_radius_px / camera.fx  # §6.2: t_max = α_max·depth, α_max = r_fine / f
     method = cfg.model_selection.rotation_check_method
-    return not rotation_explains(camera, xy0, xy1[sel], cfg.init, method, t_max_rel)
+    return not rotation_explains(camera, xy0, xy1[sel], cfg.init, cfg.model_selection, method, t_max_rel)
 
 
 class RayCheck:
