@@ -21,3 +21,4 @@ class ModelSelectionConfig:
     keyframe_by_angle: bool
     initialisation_free: bool
     rotation_check_method: EssentialMethod
+    rotation_check_max_matches: Annotated[int, Range("[5, inf)")]
