@@ -247,7 +247,7 @@ class System(Initialisation, KeyframePolicy, Tracks):
         T = res.T_cw if self._reported(res) else None
         if T is not None:
             self._record([(res.timestamp, se3.inv(T))])
-        added = self._maybe_add_keyframe(res)
+        added = self._maybe_add_keyframe(res, snapshot)
         return FrameOutcome(res.frame_index, res.timestamp, self.state, T, res, added)
 
     def _reported(self, res) -> bool:

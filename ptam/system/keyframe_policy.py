@@ -40,13 +40,13 @@ class KeyframePolicy:
 
         def _merge_tracks(self) -> bool: ...
 
-    def _maybe_add_keyframe(self, res) -> bool:
+    def _maybe_add_keyframe(self, res, snapshot) -> bool:
         """PTAM §6.2 (code ``Tracker::NeedNewKeyFrame`` + ``MapMaker::NeedNewKeyFrame``); frames of rapid motion
         are tracked but not used for map-building (Agility §10), nor are frames tracked from an approximate prior
         (after a recovery or missed frames), nor a good frame right after poor ones: its prior was a doubtful pose,
         and the tracker can settle on a wrong pose that still finds texture (desk_blur: a keyframe 300 mm off, the
         first good frame after ten poor ones). Trust is earned as a relocalisation's is: ``reloc.confirm_frames``
-        good frames in a row."""
+        good frames in a row. ``snapshot``: the map the frame was tracked against."""
         m = self.cfg.mapper
         kf = res.keyframe
         turned = self._view_turned(res)
@@ -65,7 +65,7 @@ class KeyframePolicy:
             or self._good_streak < self.cfg.reloc.confirm_frames
             or not (
                 res.quality == Quality.GOOD
-                and self._spaced(kf.frames_since_keyframe, turned)
+                and self._spaced(kf.frames_since_keyframe, turned, snapshot)
                 and self.mapper.queue_size() < m.kf_max_queue
                 and due
             )
@@ -123,16 +123,22 @@ class KeyframePolicy:
         angle = float(np.median(np.arccos(np.clip(cos, -1.0, 1.0))))
         return angle > self.cfg.mapper.kf_dist_wiggle_mult * self.mapper.wiggle_depth_normalised
 
-    def _spaced(self, frames_since_keyframe: int, turned: bool) -> bool:
+    def _spaced(self, frames_since_keyframe: int, turned: bool, snapshot) -> bool:
         """Enough time since the last keyframe: PTAM §6.2's twenty frames; or, for a view turning away from every
         keyframe (Gauglitz et al. §4.3 condition 3, whose condition 2 gives no time), the image travel itself once
         the mapper has integrated the previous keyframe (the travel is measured against the snapshot's keyframes)
         and adjusted it locally (the next one is placed against a refined map, at the pace the mapper keeps). A
-        turn at hand-held speed leaves the map within twenty frames (desk_corner: 15)."""
+        turn at hand-held speed leaves the map within twenty frames (desk_corner: 15). The travel must have been
+        measured against that keyframe too: in ``realtime`` the mapper can integrate it while the next frame is
+        tracked against the snapshot before it, which then asked for a second keyframe a frame after the first
+        (desk_pan: four such pairs in a run)."""
         if frames_since_keyframe > self.cfg.mapper.kf_min_frames:
             return True
         ms = self.cfg.model_selection
-        return turned and ms.turn_keyframes_unspaced and self.mapper.keyframes_settled()
+        if not (turned and ms.turn_keyframes_unspaced and self.mapper.keyframes_settled()):
+            return False
+        current = self.mapper.snapshot
+        return snapshot is not None and current is not None and snapshot.n_keyframes == current.n_keyframes
 
     def _about_parent(self, T_cw: np.ndarray) -> np.ndarray:
         """A panorama keyframe's pose. Its rotation was estimated about the nearest keyframe's centre: when that
