@@ -33,7 +33,7 @@ from ..geometry import se3
 from ..image.pyramid import Pyramid
 from ..map.snapshot import MapSnapshot
 from ..patch.finder import PatchFinder
-from ..patch.warp import patch_pixel_vectors, search_warps, template_matrices
+from ..patch.warp import PixelVectorCache, search_warps, template_matrices
 from ..vocabulary import PoseModel
 from .edgelet_tracking import EdgeletFrame, EdgeletTracker
 from .model_selection import select_pose_model
@@ -70,8 +70,7 @@ class Tracker:
         self.finder = PatchFinder(cfg.patch)
         self.edgelets = EdgeletTracker(camera, cfg)  # Agility §5
         self._edges = EdgeletFrame.empty()
-        self._pixel_vectors_of = None
-        self._pixel_vectors = (np.zeros((0, 3)), np.zeros((0, 3)))
+        self._pixel_vectors = PixelVectorCache(camera)
         self.reset()
 
     # -- state -------------------------------------------------------------------------------------------
@@ -253,25 +252,10 @@ class Tracker:
         proj = project_points(
             self._cam, self.camera.width, self.camera.height, self.tcfg, T, snapshot.X, snapshot.good_point_indices
         )
-        right, down = self._patch_vectors(snapshot)
+        right, down = self._pixel_vectors.vectors(snapshot)
         A, level = search_warps(self._cam, self.cfg.patch, self.n_levels, T, proj.Xc, right[proj.ids], down[proj.ids])
         ok = level >= 0
         return proj.ids[ok], proj.uv[ok], level[ok], template_matrices(A[ok], level[ok])
-
-    def _patch_vectors(self, snapshot):
-        # Snapshots are immutable, so the vectors are recomputed only when the mapper publishes a new one.
-        if self._pixel_vectors_of is not snapshot:
-            self._pixel_vectors = patch_pixel_vectors(
-                self.camera,
-                snapshot.kf_T_cw,
-                snapshot.X,
-                snapshot.normal,
-                snapshot.source_kf,
-                snapshot.source_level,
-                snapshot.source_xy,
-            )
-            self._pixel_vectors_of = snapshot
-        return self._pixel_vectors
 
     def _search(self, pyramid, snapshot, ids, level, M, uv, radius, subpix):
         return self.finder.find(
