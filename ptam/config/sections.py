@@ -231,6 +231,7 @@ class SystemConfig:
     map_checkpoint_keyframes: Annotated[int, Range("[0, inf)")]
     output_flush_s: Annotated[float, Range("(0, inf)")]
     latency_window_frames: Annotated[int, Range("[1, inf)")]
+    background_nice: Annotated[int, Range("[0, 19]")]
 
 
 @dataclass(frozen=True)

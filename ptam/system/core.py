@@ -43,6 +43,7 @@ from ..vocabulary import InitMode, Quality, RunMode, TrackingState
 from .frame_outcome import FrameOutcome
 from .initialisation import Initialisation
 from .keyframe_policy import KeyframePolicy
+from .priority import lower_priority
 from .ray_check import RayCheck
 from .run_stats import RunStats
 from .stereo_start import StereoStart
@@ -127,6 +128,7 @@ class System(Initialisation, KeyframePolicy, Tracks):
         return self
 
     def _mapper_loop(self) -> None:
+        lower_priority(self.cfg.system.background_nice)
         try:
             while not self._stop.is_set():
                 if not (self.mapper.step() or self._merge_tracks() or self._step_set_aside()):

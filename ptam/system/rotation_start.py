@@ -33,6 +33,7 @@ from ..mapping.map_maker import KeyframeRequest, MapMaker
 from ..tracking.track_result import TrackResult
 from ..tracking.tracker import Tracker
 from ..vocabulary import Quality
+from .priority import lower_priority
 from .ray_check import rays_translate
 
 log = logging.getLogger("ptam")
@@ -45,7 +46,11 @@ class RotationStart:
         self.camera = camera
         self.cfg = cfg
         # Keyframes and the model-free check run beside the tracker where frames keep coming (inline in sync).
-        self._pool = ThreadPoolExecutor(1, thread_name_prefix="ptam-panorama") if background else None
+        self._pool = (
+            ThreadPoolExecutor(1, "ptam-panorama", lower_priority, (cfg.system.background_nice,))
+            if background
+            else None
+        )
         self._job: Future | None = None  # a keyframe being integrated
         self._check: tuple[int, Future] | None = None  # (frame, its model-free check) being run
         self.mapper: MapMaker | None = None  # keyframes of rays only

@@ -25,6 +25,7 @@ from ..mapping.map_maker import MapMaker
 from ..mapping.stereo_init import StereoMap, init_from_stereo
 from ..mapping.two_view import InitFailure
 from ..tracking.trails import TrailTracker
+from .priority import lower_priority
 from .rotation_start import RotationStart
 
 
@@ -60,7 +61,9 @@ class StereoStart:
         self.trails = TrailTracker(cfg.init, cfg.image)
         self.first: tuple[Pyramid, float, int] | None = None
         self.history: deque[TrailFrame] = deque(maxlen=cfg.init.max_history_frames)
-        self._pool = ThreadPoolExecutor(1, thread_name_prefix="ptam-init") if background else None
+        self._pool = (
+            ThreadPoolExecutor(1, "ptam-init", lower_priority, (cfg.system.background_nice,)) if background else None
+        )
         self._job: Future | None = None
         self._posing: Future | None = None
         ms = cfg.model_selection

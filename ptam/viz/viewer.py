@@ -38,6 +38,7 @@ import rerun as rr
 
 from ..geometry import se3
 from ..map.snapshot import MapSnapshot
+from ..system.priority import lower_priority
 from ..vocabulary import PoseModel, TrackingState
 from . import map_entities, palette
 from .augmented import ArFrame, AugmentedView
@@ -84,6 +85,7 @@ class Viewer:
         self.rec = recording
         self.camera = camera
         self.cfg = cfg.viewer
+        self._nice = cfg.system.background_nice
         self.show_augmented = augmented
         self.queue: queue.Queue = queue.Queue(maxsize=self.cfg.queue_size)
         self.dropped = 0
@@ -146,6 +148,7 @@ class Viewer:
 
     # -- logging thread --------------------------------------------------------------------------------------
     def _run(self) -> None:
+        lower_priority(self._nice)
         while True:
             item = self.queue.get()
             if item is None:
