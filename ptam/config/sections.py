@@ -84,6 +84,8 @@ class TrackerConfig:
     coarse_enabled: bool
     coarse_min_level: Annotated[int, Range("[0, inf)")]
     fine_subpix_min_level: Annotated[int, Range("[0, inf)")]
+    fine_subpix_all_levels: bool
+    fine_subpix_blur_fraction: Annotated[float, Range("[0, 1]")]
     recovery_coarse_factor: Annotated[int, Range("[1, inf)")]
     pose_prior: Annotated[float, Range("[0, inf)")]
     tukey_override_enabled: bool

@@ -20,12 +20,14 @@ from .template_kernels import make_templates
 @dataclass(frozen=True)
 class PatchMatches:
     """Per patch: ``attempted`` (its template could be made: PTAM counts only these), ``found``, the match
-    ``xy`` at level 0 (valid where found) and ``subpix`` (the position was refined)."""
+    ``xy`` at level 0 (valid where found) and ``subpix`` (the position was refined). ``unconverged``: matched,
+    but the refinement did not converge, so the match was dropped; its ``xy`` is the integer match."""
 
     attempted: np.ndarray
     found: np.ndarray
     xy: np.ndarray
     subpix: np.ndarray
+    unconverged: np.ndarray
 
 
 def frozen(arrays) -> tuple:
@@ -63,11 +65,10 @@ class PatchFinder:
         the last iterate is kept (PTAM code's ``ReFind_Common``)."""
         n = len(level)
         cfg = self.cfg
-        found = np.zeros(n, dtype=bool)
+        found, did_subpix, unconverged = (np.zeros(n, dtype=bool) for _ in range(3))
         xy = np.zeros((n, 2))
-        did_subpix = np.zeros(n, dtype=bool)
         if n == 0:
-            return PatchMatches(found.copy(), found, xy, did_subpix)
+            return PatchMatches(found.copy(), found, xy, did_subpix, unconverged)
         templates, attempted = make_templates(
             frozen(kf_images),
             source_kf.astype(np.int32),
@@ -94,10 +95,12 @@ class PatchFinder:
                 int(cfg.subpix_iterations),
                 float(cfg.subpix_converge_px),
             )
-            pos[refine] = pos_r
             if require_converged:
                 hit[refine] = converged
+                unconverged[ok[refine]] = ~converged
+                pos_r[~converged] = pos[refine[~converged]]
+            pos[refine] = pos_r
             did_subpix[ok[refine]] = converged
         found[ok] = hit
         xy[ok] = (pos + 0.5) * scale[:, None] - 0.5
-        return PatchMatches(attempted, found, xy, did_subpix)
+        return PatchMatches(attempted, found, xy, did_subpix, unconverged)

@@ -9,7 +9,7 @@
    when disabled, or when too few coarse points are visible or found (PTAM code);
 5. fine stage: every remaining top-level point and a random subset of the others, up to ``max_patches``
    measurements in all, re-projected with the coarse pose, searched over a tight radius, with sub-pixel
-   refinement from ``fine_subpix_min_level`` up;
+   refinement from ``fine_subpix_min_level`` up (every level with ``fine_subpix_all_levels``, but under rapid motion);
 6. final pose from the coarse and fine measurements together (§5.4), then motion model and quality (§5.6);
    failure detection is suspended while the prior rotates faster than ``reloc.rapid_rotation_deg`` (Agility §8).
    With ``model_selection.enabled`` the final pose is the better of [R|t] and [R|t ≤ t_max] by GRIC (Gauglitz
@@ -32,7 +32,7 @@ from ..errors import InputError
 from ..geometry import se3
 from ..image.pyramid import Pyramid
 from ..map.snapshot import MapSnapshot
-from ..patch.finder import PatchFinder
+from ..patch.finder import PatchFinder, PatchMatches
 from ..patch.warp import PixelVectorCache, search_warps, template_matrices
 from ..vocabulary import PoseModel
 from .edgelet_tracking import EdgeletFrame, EdgeletTracker
@@ -188,7 +188,8 @@ class Tracker:
     def _fine_stage(self, pyramid, snapshot, cand, T, did_coarse: bool, batch, clock) -> np.ndarray:
         """PTAM code: every remaining point of the top level, then a random subset of the others up to
         max_patches measurements in all, re-projected after a coarse stage; sub-pixel refinement only from
-        fine_subpix_min_level up (§5.5: "a high-level subset"). The final pose uses both stages (§5.4)."""
+        fine_subpix_min_level up (§5.5: "a high-level subset"), or on every level with fine_subpix_all_levels.
+        The final pose uses both stages (§5.4)."""
         cfg = self.tcfg
         rest = np.flatnonzero(~cand.taken)
         top = rest[cand.level[rest] == self.n_levels - 1]
@@ -203,7 +204,12 @@ class Tracker:
             uv_sel = proj.uv
         clock.lap(PROJECT)
         radius = cfg.fine_radius_after_coarse_px if did_coarse else cfg.fine_radius_px
-        m = self._search(pyramid, snapshot, ids, level, cand.M[sel], uv_sel, radius, level >= cfg.fine_subpix_min_level)
+        ptam_subpix = level >= cfg.fine_subpix_min_level
+        # Every level, unless blur is expected (Agility §8): a smeared patch does not converge and would be lost.
+        extra = ~ptam_subpix & (cfg.fine_subpix_all_levels and not self._rapid)
+        m = _unless_blurred(
+            self._search(pyramid, snapshot, ids, level, cand.M[sel], uv_sel, radius, ptam_subpix | extra), extra, cfg
+        )
         batch.add(ids, level, m, coarse=False)
         self._edges = self.edgelets.search(pyramid.levels[0], snapshot, T, self.motion)
         clock.lap(SEARCH)
@@ -350,6 +356,17 @@ class _Candidates:
     level: np.ndarray
     M: np.ndarray
     taken: np.ndarray
+
+
+def _unless_blurred(m: PatchMatches, extra: np.ndarray, cfg) -> PatchMatches:
+    """The refinement of the ``extra`` patches (below PTAM's sub-pixel levels) where most of them converged;
+    where more than ``fine_subpix_blur_fraction`` of their matches did not, the frame is blurred although the
+    motion prior was not rapid (the first frame of a sweep), and it keeps PTAM's integer matches for all of them
+    instead of losing those matches and, with them, its quality."""
+    failed = m.unconverged & extra
+    if failed.sum() <= cfg.fine_subpix_blur_fraction * (failed | (m.found & extra)).sum():
+        return m
+    return dataclasses.replace(m, found=m.found | failed)
 
 
 def _features(snapshot, ids) -> tuple[np.ndarray, np.ndarray]:
