@@ -23,6 +23,7 @@ from ..map.keyframe import KeyFrame
 from ..map.map import SRC_EPIPOLAR, SRC_REFIND, SRC_ROOT, SRC_TRACKER, Map
 from ..map.snapshot import MapSnapshot
 from ..patch.finder import PatchFinder
+from .bad_points import TrackerFeedback
 from .bundle import Bundle, BundleResult
 from .edgelet_map_ba import edgelet_ba_input, handle_edgelet_outliers, keep_edgelets
 from .edgelet_mapping import integrate_keyframe, rebuild_visibility_tables
@@ -70,12 +71,7 @@ class MapMaker:
         self._never_retry: dict[int, np.ndarray] = {}  # keyframe -> bool per point: do not search again
         self._failure_queue: list[tuple[int, int]] = []
         self._new_points: list[tuple[np.ndarray, int]] = []  # (new point ids, next keyframe to search)
-        # Tracker feedback (PTAM code: MapPoint::nMEstimatorInlier/OutlierCount, counted in the tracker's final
-        # pose update): the tracker's thread appends (inlier ids, outlier ids) per frame, the mapper drains them.
-        # Bounded: in sync mode the mapper only drains it at keyframes (PTAM uses the recent evidence anyway).
-        self.tracker_feedback: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=cfg.mapper.tracker_feedback_frames)
-        self._inlier_count = np.zeros(0, np.int64)
-        self._outlier_count = np.zeros(0, np.int64)
+        self.feedback = TrackerFeedback(cfg.mapper)  # PTAM code HandleBadPoints
         self.recent_converged = True
         self.full_converged = True
         # Keyframe spacing (PTAM code mdWiggleScaleDepthNormalized): initial baseline / first keyframe's mean depth.
@@ -156,31 +152,14 @@ class MapMaker:
 
     def report_tracking(self, inlier_ids: np.ndarray, outlier_ids: np.ndarray) -> None:
         """Called from the tracker's thread with one frame's Tukey inliers and outliers (point ids)."""
-        self.tracker_feedback.append((inlier_ids, outlier_ids))
+        self.feedback.report(inlier_ids, outlier_ids)
 
     def _handle_bad_points(self) -> bool:
-        """PTAM code ``HandleBadPoints``: a point the tracker saw as an outlier more than ``bad_point_min_outliers``
-        times, and more often than as an inlier, is bad. Returns whether any point was marked."""
-        if not self.tracker_feedback:
-            return False
-        n = self.map.n_points_total
-        for name in ("_inlier_count", "_outlier_count"):
-            a = getattr(self, name)
-            if len(a) < n:
-                setattr(self, name, np.concatenate([a, np.zeros(n - len(a), np.int64)]))
-        while self.tracker_feedback:
-            inl, out = self.tracker_feedback.popleft()
-            np.add.at(self._inlier_count, inl[inl < n], 1)
-            np.add.at(self._outlier_count, out[out < n], 1)
-        bad = (
-            (self._outlier_count[:n] > self.cfg.mapper.bad_point_min_outliers)
-            & (self._outlier_count[:n] > self._inlier_count[:n])
-            & ~self.map.bad
-        )
-        if not bad.any():
-            return False
-        self.map.mark_bad(np.flatnonzero(bad))
-        return True
+        """PTAM code ``HandleBadPoints``; returns whether any point was marked bad."""
+        bad = self.feedback.bad_points(self.map.n_points_total, self.map.bad)
+        if len(bad):
+            self.map.mark_bad(bad)
+        return bool(len(bad))
 
     def run_until_idle(self, max_steps: int = 10_000) -> None:
         for _ in range(max_steps):
