@@ -10,8 +10,13 @@ radius: α_max = r_fine / f, t_max = α_max · depth.
 
 For each model, expectation-maximisation estimates the measurement σ and the inlier ratio γ (§4.2: Gaussian
 inliers, outliers uniform over the search region), and GRIC (eq. 12, Table 2: k = 6 for [R|t], 3 for [R|0],
-D − d = 2, c/v = 1/S² for both) scores it on the same data, every found feature; the lower score wins.
-Rays keep the rotation-only model's weights either way (the mapper counts them as seen or not).
+D − d = 2, c/v = 1/S² for both) scores it; the lower score wins. Both are scored on the same data, the found
+3-D points, each model fitted to them: a ray has no depth, so neither model predicts where a translation moves
+it, and with rays in the score a camera walking past the edge of the map, two thirds of its view rays, kept
+[R|0] until the rotation model's t_max ran out and beyond (desk_turn_edge: 16 frames reported 23-79 mm off).
+The rotation-only pose that is reported still comes from every feature, rays included (they hold the rotation
+where few points are in view). Rays keep the rotation-only model's weights either way (the mapper counts them as
+seen or not).
 Errors are in units of the measurement's pyramid scale (σ = 2^level level-0 pixels, PTAM §5.4).
 """
 
@@ -77,18 +82,20 @@ def select_pose_model(
     t_max: float,
 ) -> ModelChoice:
     """Estimate [R|t ≤ t_max] from all features (X, Xw homogeneous: Xw = 0 for rays) and [R|t] from the map
-    points, starting at ``T_cw``; keep the model with the lower GRIC on all of them. ``cam``: the camera's
-    kernel parameters (``camera.kernel_params()``, built once by the tracker)."""
+    points, starting at ``T_cw``; keep the model with the lower GRIC on the map points, both fitted to them.
+    ``cam``: the camera's kernel parameters (``camera.kernel_params()``, built once by the tracker)."""
     T_rot, w_rot = update_pose(cam, tcfg, T_cw, X, xy, level, False, fixed_sigma, Xw, c_ref, t_max)
     sfm = Xw > 0
     if np.count_nonzero(sfm) < cfg.min_sfm_points:
         return ModelChoice(PoseModel.ROTATION, T_rot, w_rot, math.nan, math.nan)
-    T_gen, w_sfm = update_pose(cam, tcfg, T_cw, X[sfm], xy[sfm], level[sfm], False, fixed_sigma)
+    X3, xy3, level3 = X[sfm], xy[sfm], level[sfm]
+    T_gen, w_sfm = update_pose(cam, tcfg, T_cw, X3, xy3, level3, False, fixed_sigma)
+    T_rot3, _ = update_pose(cam, tcfg, T_cw, X3, xy3, level3, False, fixed_sigma, None, c_ref, t_max)
     area = (2.0 * tcfg.fine_radius_px) ** 2  # Table 2: S × S, the search region, in the errors' level units
     scores = []
-    level_f = level.astype(np.float64)
-    for T, k in ((T_gen, K_GENERAL), (T_rot, K_ROTATION)):
-        e2 = scaled_sq_errors(cam, T, X, Xw, xy, level_f, area)
+    level_f = level3.astype(np.float64)
+    for T, k in ((T_gen, K_GENERAL), (T_rot3, K_ROTATION)):
+        e2 = scaled_sq_errors(cam, T, X3, np.ones(len(X3)), xy3, level_f, area)
         scores.append(gric(e2, *em_noise(e2, area, cfg), area, k))
     if scores[1] <= scores[0]:
         return ModelChoice(PoseModel.ROTATION, T_rot, w_rot, scores[0], scores[1])
