@@ -19,6 +19,7 @@ class ModelSelectionConfig:
     panorama_kf_travel: Annotated[float, Range("(0, 1]")]
     turn_keyframes_unspaced: bool
     keyframe_by_angle: bool
+    rays_gain_depth: bool
     initialisation_free: bool
     rotation_check_method: EssentialMethod
     rotation_check_max_matches: Annotated[int, Range("[5, inf)")]

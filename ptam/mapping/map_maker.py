@@ -30,7 +30,7 @@ from .edgelet_mapping import integrate_keyframe, rebuild_visibility_tables
 from .epipolar import epipolar_matches, unit_plane_corners
 from .local_ba import local_sets
 from .normals import NormalEstimator
-from .panorama import add_ray_points, free_candidates, new_point_levels
+from .panorama import add_ray_points, free_candidates, new_point_levels, triangulate_rays
 from .refind import refind_points
 
 if TYPE_CHECKING:
@@ -176,6 +176,8 @@ class MapMaker:
         good = ~self.map.bad[r.point_ids]
         self.map.add_measurements(k, r.point_ids[good], r.xy[good], r.level[good], SRC_TRACKER)
         self._refind_in_keyframe(k, self._unmeasured_points(k))
+        if not r.panorama and self.cfg.model_selection.rays_gain_depth:  # Gauglitz §4.3: found anew like new points
+            self._new_points.append((self._triangulate_rays(k), 0))
         min_dist = self.cfg.mapper.candidate_min_dist_px
         for level in new_point_levels(self.cfg.image.levels):
             if r.panorama:
@@ -189,6 +191,17 @@ class MapMaker:
         self._integrated += 1
         self.stats["keyframes_added"] += 1
         self.stats["panorama_keyframes_added"] += int(r.panorama)
+
+    def _triangulate_rays(self, k: int) -> np.ndarray:
+        """The parallax PTAM's keyframe spacing gives its epipolar pairs (the first pair's baseline over depth)."""
+        angle = self.cfg.mapper.kf_dist_wiggle_mult * self.wiggle_depth_normalised
+        return triangulate_rays(self.map, self.camera, k, self.cfg, self._unit_plane_corners, angle)
+
+    def _unit_plane_corners(self, k: int, level: int) -> np.ndarray:
+        key = (k, level)
+        if key not in self._plane_corners:
+            self._plane_corners[key] = unit_plane_corners(self.camera, self.map.keyframes[k].pyramid, level)
+        return self._plane_corners[key]
 
     def _measured_in(self, k: int) -> np.ndarray:
         measured = np.zeros(self.map.n_points_total, bool)
@@ -206,9 +219,6 @@ class MapMaker:
         if len(xy) == 0:
             return 0
         t = self.map.nearest_with_baseline(k)
-        key = (t, level)
-        if key not in self._plane_corners:
-            self._plane_corners[key] = unit_plane_corners(self.camera, m.keyframes[t].pyramid, level)
         T = m.kf_T_cw
         res = epipolar_matches(
             self.camera,
@@ -220,7 +230,7 @@ class MapMaker:
             kf.scene_depth_sigma,
             level,
             xy,
-            self._plane_corners[key],
+            self._unit_plane_corners(t, level),
             self.cfg,
         )
         n = len(res.X)
