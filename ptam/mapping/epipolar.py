@@ -34,6 +34,7 @@ class EpipolarMatches:
     src_xy: np.ndarray  # (n, 2) level-0 pixels in the source keyframe (the patch centre)
     src_level_xy: np.ndarray  # (n, 2) pixels at the source level
     tgt_xy: np.ndarray  # (n, 2) level-0 pixels in the target keyframe (sub-pixel)
+    candidate: np.ndarray  # (n,) index of each match among the candidates searched
 
 
 @dataclass(frozen=True)
@@ -176,13 +177,14 @@ def _triangulated(
     src_xy: np.ndarray,
     src_level_xy: np.ndarray,
     tgt_xy: np.ndarray,
+    candidate: np.ndarray,
 ) -> EpipolarMatches:
     """The matches triangulated, keeping those in front of both keyframes."""
     X = triangulate_two_view(T_src, T_tgt, camera.unproject(src_xy), camera.unproject(tgt_xy))
     zs = X @ T_src[2, :3] + T_src[2, 3]
     zt = X @ T_tgt[2, :3] + T_tgt[2, 3]
     good = np.isfinite(X).all(axis=1) & (zs > 0) & (zt > 0)
-    return EpipolarMatches(X[good], src_xy[good], src_level_xy[good], tgt_xy[good])
+    return EpipolarMatches(X[good], src_xy[good], src_level_xy[good], tgt_xy[good], candidate[good])
 
 
 def epipolar_matches(
@@ -200,7 +202,7 @@ def epipolar_matches(
 ) -> EpipolarMatches:
     """Search every candidate (level pixels (n, 2) int in the source keyframe) in the target keyframe."""
     p = cfg.patch
-    empty = EpipolarMatches(np.zeros((0, 3)), np.zeros((0, 2)), np.zeros((0, 2)), np.zeros((0, 2)))
+    empty = EpipolarMatches(np.zeros((0, 3)), np.zeros((0, 2)), np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0, int))
     if len(cand_xy) == 0 or len(tgt_pyr.corners[level]) == 0:
         return empty
     cand_xy = np.asarray(cand_xy, np.float64)
@@ -229,4 +231,4 @@ def epipolar_matches(
         p.subpix_converge_px,
     )
     idx = idx[conv]
-    return _triangulated(camera, T_src, T_tgt, root[idx], cand_xy[idx], level_to_zero(refined[conv], level))
+    return _triangulated(camera, T_src, T_tgt, root[idx], cand_xy[idx], level_to_zero(refined[conv], level), idx)

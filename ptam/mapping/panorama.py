@@ -100,8 +100,7 @@ def triangulate_rays(m: Map, camera, k: int, cfg, plane_corners, min_angle: floa
             )  # fmt: skip
             if not len(found.X):
                 continue
-            at = {tuple(v): i for i, v in enumerate(xy.tolist())}
-            hit = ids[[at[tuple(v)] for v in found.src_level_xy.tolist()]]
+            hit = ids[found.candidate]
             m.place_rays(hit, found.X)
             # A ray's own prediction ignores parallax: what the tracker or a refind measured of it in k is replaced.
             taken = np.zeros(n, bool)
