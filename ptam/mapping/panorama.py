@@ -82,8 +82,8 @@ def triangulate_rays(m: Map, camera, k: int, cfg, plane_corners, min_angle: floa
     n = m.n_points_total
     rays = np.flatnonzero(m.ray[:n] & ~m.bad[:n])
     T, C = m.kf_T_cw, m.camera_centres
-    uv = camera.project(se3.transform(T[k], m.X[rays]))  # drawn at their keyframe's scene depth
-    rays = rays[camera.in_image(uv) & (se3.transform(T[k], m.X[rays])[:, 2] > 0)]
+    Xc = se3.transform(T[k], m.X[rays])  # drawn at their keyframe's scene depth
+    rays = rays[(Xc[:, 2] > 0) & camera.in_image(camera.project(Xc))]
     target = m.keyframes[k]
     for p in np.unique(m.source_kf[rays]):
         kf = m.keyframes[p]
