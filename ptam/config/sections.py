@@ -213,6 +213,7 @@ class BundleConfig:
     max_iterations: Annotated[int, Range("[1, inf)")]
     converge_squared_update: Annotated[float, Range("[0, inf)")]
     min_tukey_sigma: Annotated[float, Range("(0, inf)")]
+    hold_scale: bool
     local_neighbours: Annotated[int, Range("[0, inf)")]
     dense_max_cameras: Annotated[int, Range("[0, inf)")]
 

@@ -28,6 +28,7 @@ from .bundle import Bundle, BundleResult
 from .edgelet_map_ba import edgelet_ba_input, handle_edgelet_outliers, keep_edgelets
 from .edgelet_mapping import integrate_keyframe, rebuild_visibility_tables
 from .epipolar import epipolar_matches, unit_plane_corners
+from .gauge import hold_scale
 from .local_ba import local_sets
 from .normals import NormalEstimator
 from .panorama import add_ray_points, free_candidates, new_point_levels, triangulate_rays
@@ -324,6 +325,7 @@ class MapMaker:
         else:
             fixed_poses, adjust_points = fixed, ~m.bad
         edgelets = edgelet_ba_input(m, self.cfg, sets.adjust if recent else None)  # Agility §4.4
+        centres = m.camera_centres.copy()
         self.stats["ba_running"] = "local" if recent else "global"
         try:
             res = self.bundle.adjust(
@@ -345,6 +347,8 @@ class MapMaker:
             (n, 1e3 * res.phase_seconds.get("total", 0.0), bool(res.converged))
         )
         self._keep_ba_result(res, recent, np.flatnonzero(use), edgelets)
+        if not recent and res.accepted > 0 and not res.failed and self.cfg.bundle.hold_scale:
+            hold_scale(m, centres)
 
     def _keep_ba_result(self, res: BundleResult, recent: bool, used: np.ndarray, edgelets) -> None:
         """Write an adjustment's result into the map and handle its outliers (PTAM code ``BundleAdjust``)."""
