@@ -206,10 +206,8 @@ class Map:
 
     def place_rays(self, indices, X) -> None:
         """Panorama features that gained depth (Gauglitz et al. §4.3) become map points at X (M, 3)."""
-        idx = self._check_indices("point", indices, self._points.n)
-        self._points.data["X"][idx] = _rows("X", X, len(idx), (3,), np.float64)
-        self._points.data["ray"][idx] = False
-        self._changed()
+        self.set_points(indices, X)
+        self._points.data["ray"][np.asarray(indices, dtype=np.int64)] = False
 
     def set_normals(self, indices, normal) -> None:
         """Replace the unit patch normals (world frame) of points ``indices`` (Gauglitz et al. §5.4 estimates)."""

@@ -76,9 +76,9 @@ def triangulate_rays(m: Map, camera, k: int, cfg, plane_corners, min_angle: floa
     group's points, so the points come in its frame and scale (the median distance ratio by which §4.3 scales an
     E-connected group is 1 here). ``plane_corners(k, level)``: k's FAST corners on the unit plane. Returns the new
     points' indices."""
-    made = [np.zeros(0, np.int64)]
+    made = [(np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(0, np.int64))]
     if m.keyframes[k].panorama:
-        return made[0]
+        return made[0][0]
     n = m.n_points_total
     rays = np.flatnonzero(m.ray[:n] & ~m.bad[:n])
     T, C = m.kf_T_cw, m.camera_centres
@@ -102,10 +102,11 @@ def triangulate_rays(m: Map, camera, k: int, cfg, plane_corners, min_angle: floa
                 continue
             hit = ids[found.candidate]
             m.place_rays(hit, found.X)
-            # A ray's own prediction ignores parallax: what the tracker or a refind measured of it in k is replaced.
-            taken = np.zeros(n, bool)
-            taken[hit] = True
-            m.remove_measurements((m.meas_kf == k) & taken[m.meas_pt])
-            m.add_measurements(k, hit, found.tgt_xy, np.full(len(hit), level), SRC_EPIPOLAR)
-            made.append(hit)
-    return np.concatenate(made)
+            made.append((hit, found.tgt_xy, np.full(len(hit), level)))
+    hit, xy, level = (np.concatenate(parts) for parts in zip(*made))
+    # A ray's own prediction ignores parallax: what the tracker or a refind measured of it in k is replaced.
+    taken = np.zeros(n, bool)
+    taken[hit] = True
+    m.remove_measurements((m.meas_kf == k) & taken[m.meas_pt])
+    m.add_measurements(k, hit, xy, level, SRC_EPIPOLAR)
+    return hit
