@@ -57,6 +57,5 @@ class EdgeletConfig:
     refine_iterations: Annotated[int, Range("[0, inf)")]
     # §5: tracking
     track_sigma_px: Annotated[float, Range("(0, inf)")]
-    track_exposure_fraction: Annotated[float, Range("[0, inf)")]
     track_min_found: Annotated[int, Range("[1, inf)")]
     coarse_min_range_px: Annotated[float, Range("[0, inf)")]

@@ -14,6 +14,7 @@ range, and an infinite value only where a closed bracket admits it. A new numeri
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Annotated
 
@@ -86,6 +87,8 @@ class TrackerConfig:
     fine_subpix_min_level: Annotated[int, Range("[0, inf)")]
     fine_subpix_all_levels: bool
     fine_subpix_blur_fraction: Annotated[float, Range("[0, 1]")]
+    exposure_fraction: Annotated[float, Range("[0, inf)")]
+    blur_gate_patch_widths: Annotated[float, Range("(0, inf]")]
     recovery_coarse_factor: Annotated[int, Range("[1, inf)")]
     pose_prior: Annotated[float, Range("[0, inf)")]
     tukey_override_enabled: bool
@@ -265,4 +268,13 @@ class Config:
         """A copy with ``section.key`` values changed, e.g. ``cfg.replace(**{"tracker.max_patches": 500})``."""
         from .loader import apply_overrides  # the loader builds Configs; sections must not import it at load
 
-        return apply_overrides(self, [f"{k}={v!r}" if isinstance(v, str) else f"{k}={v}" for k, v in changes.items()])
+        return apply_overrides(self, [f"{k}={_yaml_scalar(v)}" for k, v in changes.items()])
+
+
+def _yaml_scalar(v) -> str:
+    """``v`` as the YAML an override parses back to it: strings quoted, infinities as ``.inf``."""
+    if isinstance(v, str):
+        return repr(v)
+    if isinstance(v, float) and math.isinf(v):
+        return ".inf" if v > 0 else "-.inf"
+    return str(v)

@@ -77,6 +77,32 @@ class MapSnapshot:
     def good_edgelet_indices(self) -> np.ndarray:
         return np.flatnonzero(~self.edgelet_bad)
 
+    def features(self, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Homogeneous features (X, w) of points ``ids``: map points at w = 1; panorama rays (Gauglitz et al.
+        §3.2) as directions from their source keyframe's centre at w = 0."""
+        X = self.X[ids]
+        ray = self.ray[ids]
+        if ray.any():
+            X = X.copy()
+            X[ray] -= self.camera_centres[self.source_kf[ids[ray]]]
+        return X, (~ray).astype(np.float64)
+
+    def nearest_keyframe(self, T_cw: np.ndarray) -> tuple[int, float]:
+        """Index and camera-centre distance of the keyframe nearest to pose ``T_cw`` (-1, inf without any)."""
+        if not self.n_keyframes:
+            return -1, float("inf")
+        d = np.linalg.norm(self.camera_centres - camera_centres(T_cw[None])[0], axis=1)
+        nearest = int(np.argmin(d))
+        return nearest, float(d[nearest])
+
+    def view_travel(self, T_cw: np.ndarray) -> float:
+        """Smallest rotation angle (radians) between the camera and any keyframe: the image travel of the view,
+        per unit focal length, since the nearest keyframe view (Gauglitz et al. §4.3); inf without keyframes."""
+        if not self.n_keyframes:
+            return float("inf")
+        cos = (np.einsum("nij,ij->n", self.kf_T_cw[:, :3, :3], T_cw[:3, :3]) - 1.0) / 2.0
+        return float(np.arccos(np.clip(cos.max(), -1.0, 1.0)))
+
 
 def _empty(shape: tuple, dtype) -> np.ndarray:
     a = np.zeros(shape, dtype)

@@ -5,9 +5,8 @@ Each frame, after the points' fine search: the map's edgelets measured in the ke
 projected with the pose so far; each one's edge-normal blur is l = |J γ_C| (eq. 10) with J its 1×6 Jacobian
 (eq. 11) and γ_C the motion during the exposure; the visibility table gives, for that blur, whether it can be
 seen and its r_search and t_min; the visible ones in the image get one blur-matched sawtooth search along
-their predicted normal (§5.1). γ_C is ``track_exposure_fraction`` of the frame's motion: the rotation of this
-frame's prior (the rotation estimator's, Agility §6, when it runs) and the motion model's translational
-velocity (the estimator drops translation from the prior, but translation blurs as well).
+their predicted normal (§5.1). γ_C is the motion during the exposure (``MotionModel.exposure_motion`` with
+``tracker.exposure_fraction``).
 
 Agility §8: edgelets whose search range is 20 px or more (``coarse_min_range_px``) join the coarse stage, measured
 from the prior and used with the coarse points in its pose update; the fine stage then measures every visible
@@ -93,7 +92,7 @@ class EdgeletTracker:
         ids, table = self._table(snapshot, T_cw)
         ed = Edgelets(snapshot.edgelet_centre[ids], snapshot.edgelet_direction[ids], snapshot.edgelet_normal[ids])
         p = project_edgelets(self.camera, T_cw, ed)
-        gamma = np.concatenate([motion.velocity[:3], motion.prior[3:]]) * self.ecfg.track_exposure_fraction
+        gamma = motion.exposure_motion(self.cfg.tracker.exposure_fraction)
         blur = blur_lengths(perpendicular_pose_jacobian(self.camera, T_cw, ed), gamma)
         visible, radius, t_min = table.lookup(blur)
         h, w = image.shape

@@ -47,6 +47,12 @@ class MotionModel:
         self.prior = v
         return se3.exp(v) @ T_cw
 
+    def exposure_motion(self, fraction: float) -> np.ndarray:
+        """γ_C of Agility eq. 10, the camera motion during an exposure of ``fraction`` of a frame period: the
+        prior's rotation (the rotation estimator's when it runs) and the velocity's translation (the estimator
+        drops translation from the prior, but translation blurs as well)."""
+        return np.concatenate([self.velocity[:3], self.prior[3:]]) * fraction
+
     def update(self, T_start: np.ndarray, T_new: np.ndarray, mean_scene_depth: float, frames: float = 1.0) -> None:
         delta = se3.log(T_new @ se3.inv(T_start)) / frames  # per frame period
         self.velocity = self.decay * (self.blend * delta + (1.0 - self.blend) * self.velocity)

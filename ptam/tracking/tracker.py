@@ -3,7 +3,7 @@
 1. pyramid + FAST corners (keyframe preparation), prior pose from the motion model (§5.1), its rotation
    replaced by the small-blurry-image rotation estimate when enabled (Agility §6, §8);
 2. project all good map points, keep the potentially visible set, compute each one's warp and search level
-   (§5.2, §5.3);
+   (§5.2, §5.3); drop the patches the expected motion blur smears past recognition (:mod:`.patch_blur`);
 3.–4. coarse stage (§5.5): up to ``coarse_points`` points at the coarsest search levels, searched over a large
    radius with sub-pixel refinement, then a pose update — skipped when the camera is nearly stationary (§6.5),
    when disabled, or when too few coarse points are visible or found (PTAM code);
@@ -38,6 +38,7 @@ from ..vocabulary import PoseModel
 from .edgelet_tracking import EdgeletFrame, EdgeletTracker
 from .model_selection import select_pose_model
 from .motion_model import FrameGaps, MotionModel
+from .patch_blur import patch_blur, searchable
 from .pose_update import update_pose
 from .projection import project_points
 from .quality import GOOD, TrackingQuality
@@ -143,6 +144,7 @@ class Tracker:
         if snapshot is not None and snapshot.n_points and snapshot.n_keyframes:
             ids, uv, level, M = self._potentially_visible(snapshot, T)
             n_visible = len(ids)
+            ids, uv, level, M = self._unblurred(snapshot, T, ids, uv, level, M)
             order = np.lexsort((self._rng.random(len(ids)), -level))  # coarsest first, shuffled within a level
             cand = _Candidates(ids[order], uv[order], level[order], M[order], np.zeros(len(ids), dtype=bool))
             clock.lap(PROJECT)
@@ -176,7 +178,7 @@ class Tracker:
         with_edges = self.edgelets.usable(edges)
         did_coarse = bool(m.found.sum() >= cfg.coarse_min_points) or with_edges
         if did_coarse:
-            X, Xw = _features(snapshot, ids[m.found])
+            X, Xw = snapshot.features(ids[m.found])
             xy, lv = m.xy[m.found], level[m.found]
             if with_edges:
                 T, _, _ = self.edgelets.final_pose(T, X, Xw, xy, lv, not self._rapid, edges, coarse=True)
@@ -216,7 +218,7 @@ class Tracker:
         found, xy = batch.found(), batch.xy()
         self._model = PoseModel.GENERAL
         if found.any():
-            X, Xw = _features(snapshot, batch.ids()[found])
+            X, Xw = snapshot.features(batch.ids()[found])
             level = batch.level()[found]
             if self.edgelets.usable(self._edges):
                 T, w, self._edges = self.edgelets.final_pose(T, X, Xw, xy[found], level, not self._rapid, self._edges)
@@ -231,7 +233,7 @@ class Tracker:
     def _select_model(self, snapshot, T, X, Xw, xy, level):
         """Gauglitz et al. §4.2, §6.2: [R|t] against [R|t ≤ t_max] about the nearest keyframe's centre, where
         t_max = α_max·depth and α_max = r_fine / f keeps the panorama's rays inside the fine search radius."""
-        nearest, _ = _nearest_keyframe(snapshot, T)
+        nearest, _ = snapshot.nearest_keyframe(T)
         depth = self.scene_depth[0] or snapshot.keyframes[nearest].scene_depth_mean
         t_max = self.tcfg.fine_radius_px / self.camera.fx * depth
         c_ref = snapshot.camera_centres[nearest]
@@ -263,6 +265,13 @@ class Tracker:
         ok = level >= 0
         return proj.ids[ok], proj.uv[ok], level[ok], template_matrices(A[ok], level[ok])
 
+    def _unblurred(self, snapshot, T, ids, uv, level, M):
+        """The candidates whose expected blur leaves their patch searchable (``patch_blur``)."""
+        X, w = snapshot.features(ids)
+        blur = patch_blur(self.camera, T, X, w, self.motion.exposure_motion(self.tcfg.exposure_fraction))
+        ok = searchable(blur, level, self.cfg.patch.size, self.tcfg.blur_gate_patch_widths)
+        return ids[ok], uv[ok], level[ok], M[ok]
+
     def _search(self, pyramid, snapshot, ids, level, M, uv, radius, subpix):
         return self.finder.find(
             pyramid,
@@ -289,8 +298,8 @@ class Tracker:
             self.motion.update(T_start, T, depth_mean, frames)
         reloc = self.cfg.reloc
         rapid = reloc.suspend_when_rapid and self._rapid
-        nearest, dist = _nearest_keyframe(snapshot, T)
-        travel = _view_travel(snapshot, T) * self.camera.fx
+        nearest, dist = snapshot.nearest_keyframe(T) if snapshot is not None else (-1, float("inf"))
+        travel = (snapshot.view_travel(T) if snapshot is not None else float("inf")) * self.camera.fx
         # PTAM code (IsDistanceToNearestKeyFrameExcessive): a pose far beyond every keyframe, in units of the
         # initial stereo baseline, is not trusted however many patches matched.
         too_far = dist > self.tcfg.max_keyframe_distance_baselines * self.cfg.init.baseline_m
@@ -367,32 +376,3 @@ def _unless_blurred(m: PatchMatches, extra: np.ndarray, cfg) -> PatchMatches:
     if failed.sum() <= cfg.fine_subpix_blur_fraction * (failed | (m.found & extra)).sum():
         return m
     return dataclasses.replace(m, found=m.found | failed)
-
-
-def _features(snapshot, ids) -> tuple[np.ndarray, np.ndarray]:
-    """Homogeneous features (X, w) of points ``ids``: map points at w = 1; panorama rays (Gauglitz et al. §3.2) as
-    directions from their source keyframe's centre at w = 0."""
-    X = snapshot.X[ids]
-    ray = snapshot.ray[ids]
-    if ray.any():
-        X = X.copy()
-        X[ray] -= snapshot.camera_centres[snapshot.source_kf[ids[ray]]]
-    return X, (~ray).astype(np.float64)
-
-
-def _view_travel(snapshot, T) -> float:
-    """Smallest rotation angle (radians) between the camera and any keyframe: the image travel of the view, per
-    unit focal length, since the nearest keyframe view (Gauglitz et al. §4.3); inf without keyframes."""
-    if snapshot is None or not snapshot.n_keyframes:
-        return float("inf")
-    cos = (np.einsum("nij,ij->n", snapshot.kf_T_cw[:, :3, :3], T[:3, :3]) - 1.0) / 2.0
-    return float(np.arccos(np.clip(cos.max(), -1.0, 1.0)))
-
-
-def _nearest_keyframe(snapshot, T) -> tuple[int, float]:
-    """Index and camera-centre distance of the keyframe nearest to pose ``T`` (-1, inf without keyframes)."""
-    if snapshot is None or not snapshot.n_keyframes:
-        return -1, float("inf")
-    d = np.linalg.norm(snapshot.camera_centres - se3.inv(T)[:3, 3], axis=1)
-    nearest = int(np.argmin(d))
-    return nearest, float(d[nearest])

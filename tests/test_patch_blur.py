@@ -1,0 +1,46 @@
+"""The blur a patch is expected to suffer (Agility eq. 10 for points) and the gate on it (``tracking.patch_blur``)."""
+
+import numpy as np
+
+from ptam.geometry import se3
+from ptam.tracking.patch_blur import patch_blur, searchable
+from tests.support.cameras import CAMERAS
+
+
+def _points(rng, n=200):
+    return np.column_stack([rng.uniform(-0.6, 0.6, n), rng.uniform(-0.4, 0.4, n), rng.uniform(0.8, 2.5, n)])
+
+
+def test_blur_is_the_image_motion_during_the_exposure():
+    """For a small motion γ the predicted blur equals the displacement of the projection between the poses
+    T and exp(γ)·T, to first order: within 1 % on every lens model."""
+    rng = np.random.default_rng(3)
+    T = se3.exp(np.array([0.02, -0.01, 0.03, 0.01, 0.02, -0.01]))
+    gamma = np.array([0.004, -0.002, 0.001, 0.002, -0.003, 0.001])
+    for name, cam in CAMERAS.items():
+        Xc = _points(rng)
+        X = se3.transform(se3.inv(T), Xc)
+        moved = cam.project(se3.transform(se3.exp(gamma) @ T, X)) - cam.project(Xc)
+        blur = patch_blur(cam, T, X, np.ones(len(X)), gamma)
+        np.testing.assert_allclose(blur, np.linalg.norm(moved, axis=1), rtol=0.01, err_msg=name)
+        assert blur.min() > 0.5  # the motion is not negligible
+
+
+def test_a_ray_is_not_blurred_by_translation():
+    rng = np.random.default_rng(4)
+    cam = CAMERAS["pinhole"]
+    T = np.eye(4)
+    X = _points(rng)
+    translation = np.array([0.05, 0.02, 0.0, 0.0, 0.0, 0.0])
+    assert np.all(patch_blur(cam, T, X, np.zeros(len(X)), translation) == 0.0)
+    assert np.all(patch_blur(cam, T, X, np.ones(len(X)), translation) > 5.0)
+    rotation = np.array([0.0, 0.0, 0.0, 0.0, 0.02, 0.0])  # 1.15 degrees about y: ~fx * 0.02 px near the centre
+    blur = patch_blur(cam, T, X / np.linalg.norm(X, axis=1, keepdims=True), np.zeros(len(X)), rotation)
+    np.testing.assert_allclose(blur, patch_blur(cam, T, X, np.ones(len(X)), rotation), rtol=1e-12)
+
+
+def test_the_gate_is_one_patch_width_at_the_search_level():
+    blur = np.array([8.0, 8.5, 16.0, 17.0, 64.0, 65.0])
+    level = np.array([0, 0, 1, 1, 3, 3])
+    np.testing.assert_array_equal(searchable(blur, level, 8, 1.0), [True, False, True, False, True, False])
+    assert searchable(blur, level, 8, np.inf).all()
