@@ -116,5 +116,5 @@ def test_new_keyframe_remeasures_map_edgelets(mapped):
     assert np.all(dist < 0.003) and np.median(angle) < 1.0 and np.percentile(angle, 90) < 2.0
 
 
-def test_edgelets_are_off_by_default():
-    assert config().edgelets.enabled is False
+def test_edgelets_are_on_by_default():
+    assert config().edgelets.enabled is True
