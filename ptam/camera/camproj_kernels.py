@@ -106,3 +106,26 @@ def project_points_jac(cam, Xc):
         uv[i, 1] = v
         valid[i] = ok
     return uv, J, valid
+
+
+@njit(nogil=True, cache=True)
+def undistort_points(cam, xy_d, iters, tol):
+    """Distorted normalised points (N, 2) -> undistorted: Gauss–Newton on ``distort`` and its 2×2 Jacobian, per
+    point from the distorted point, until both residuals are below ``tol`` or after ``iters`` steps."""
+    n = xy_d.shape[0]
+    out = np.empty((n, 2))
+    for i in range(n):
+        x = xy_d[i, 0]
+        y = xy_d[i, 1]
+        for _ in range(iters):
+            xd, yd, a, b, c, d = distort(cam, x, y)
+            rx = xd - xy_d[i, 0]
+            ry = yd - xy_d[i, 1]
+            if abs(rx) < tol and abs(ry) < tol:
+                break
+            det = a * d - b * c
+            x -= (d * rx - b * ry) / det
+            y -= (a * ry - c * rx) / det
+        out[i, 0] = x
+        out[i, 1] = y
+    return out

@@ -1,7 +1,8 @@
 """OpenCV's radial-tangential (Brown–Conrady) model with k1, k2, p1, p2, k3.
 
 The inverse has no closed form; ``undistort`` runs Gauss–Newton on the 2×2 forward Jacobian from the
-distorted point, vectorised over all points, until the pixel residual is below 1e-12.
+distorted point, per point in a kernel (``camproj_kernels.undistort_points``; numpy reference
+``tests/reference/camera.py``), until the normalised residual is below 1e-14.
 """
 
 from __future__ import annotations
@@ -9,9 +10,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..vocabulary import LensModel
-from .model import CameraModel
+from .camproj_kernels import RADTAN, undistort_points
+from .model import KERNEL_PARAMS_LEN, CameraModel
 
 _UNDISTORT_ITERS = 30
+_UNDISTORT_TOL = 1e-14
 
 
 class RadTanCamera(CameraModel):
@@ -45,14 +48,12 @@ class RadTanCamera(CameraModel):
 
     def undistort(self, xy_d):
         xy_d = np.asarray(xy_d, dtype=np.float64)
-        xy = xy_d.copy()
-        for _ in range(_UNDISTORT_ITERS):
-            res = self.distort(xy) - xy_d
-            if np.all(np.abs(res) < 1e-14):
-                break
-            J = self.distort_jacobian(xy)
-            xy = xy - np.linalg.solve(J, res[..., None])[..., 0]
-        return xy
+        flat = np.ascontiguousarray(xy_d.reshape(-1, 2))
+        # Only the model and its distortion: kernel_params() needs max_radius, which is computed by undistorting.
+        cam = np.zeros(KERNEL_PARAMS_LEN)
+        cam[0] = RADTAN
+        cam[5:10] = self.distortion_params()
+        return undistort_points(cam, flat, _UNDISTORT_ITERS, _UNDISTORT_TOL).reshape(xy_d.shape)
 
     def distortion_params(self):
         return [self.k1, self.k2, self.p1, self.p2, self.k3]
