@@ -5,7 +5,7 @@ import pytest
 
 from ptam.edgelet.edgelet import EDGELET_DOF, Edgelets, perp
 from ptam.edgelet.edgelet_ba import EdgeletObservations, edgelet_terms, sample_along, update_poses
-from ptam.edgelet.edgelet_ba_kernels import edgelet_ba_terms
+from ptam.edgelet.edgelet_ba_kernels import edgelet_ba_terms, edgelet_normal_equations
 from ptam.edgelet.edgelet_projection import project_edgelets
 from ptam.geometry import se3
 from tests.reference.edgelet_ba import edgelet_ba_terms_ref
@@ -72,6 +72,30 @@ def test_kernel_matches_reference(name, ecfg):
     ref = edgelet_ba_terms_ref(cam, flipped, e.frames(), obs.kf, obs.edgelet, obs.a, m_hat, along)
     assert np.array_equal(got[3], ref[3]) and (~got[3]).sum() >= 40
     assert all(np.allclose(g, r, atol=1e-6) for g, r in zip(got[:3], ref[:3]))
+
+
+@pytest.mark.parametrize("name", list(CAMERAS))
+def test_normal_equations_kernel_matches_reference(name, ecfg):
+    """Σ JᵀJ and Σ Jᵀε per edgelet, as the reference's terms sum them; one keyframe turned away from the edgelets
+    leaves its measurements out (and the counts one lower)."""
+    cam = CAMERAS[name]
+    rng = np.random.default_rng(1)
+    poses, e, obs = _problem(rng, cam)
+    along = sample_along(cam, poses, e, obs, ecfg)
+    poses[1] = se3.from_Rt(np.diag([1.0, -1.0, -1.0]), np.zeros(3)) @ poses[1]
+    m_hat = perp(obs.b)
+    err, _, Je, valid = edgelet_ba_terms_ref(cam, poses, e.frames(), obs.kf, obs.edgelet, obs.a, m_hat, along)
+    n = len(e)
+    H_ref = np.zeros((n, 4, 4))
+    g_ref = np.zeros((n, 4))
+    np.add.at(H_ref, obs.edgelet[valid], np.einsum("msi,msj->mij", Je, Je)[valid])
+    np.add.at(g_ref, obs.edgelet[valid], np.einsum("msi,ms->mi", Je, err)[valid])
+    H, g, count = edgelet_normal_equations(
+        cam.kernel_params(), poses, e.frames(), obs.kf, obs.edgelet, obs.a, m_hat, along, n
+    )
+    assert np.array_equal(count, np.bincount(obs.edgelet[valid], minlength=n)) and count.max() == 3
+    assert np.allclose(H, H_ref, rtol=1e-9, atol=1e-6) and np.allclose(g, g_ref, rtol=1e-9, atol=1e-6)
+    assert np.abs(g).max() > 1.0
 
 
 def test_sample_points_are_five_pixels_from_the_centre(ecfg):

@@ -20,7 +20,7 @@ from ..config.edgelet_section import EdgeletConfig
 from ..errors import InputError
 from ..geometry import se3
 from .edgelet import Edgelets, perp
-from .edgelet_ba_kernels import edgelet_ba_terms
+from .edgelet_ba_kernels import edgelet_ba_terms, edgelet_normal_equations
 
 
 @dataclass(frozen=True)
@@ -67,8 +67,7 @@ def edgelet_terms(
     camera: CameraModel, poses: np.ndarray, edgelets: Edgelets, obs: EdgeletObservations, along: np.ndarray
 ) -> EdgeletTerms:
     """Residuals ε_n = m̂·(s_n − a) and their Jacobians for every observation (Agility §4.4, eq. 7–9)."""
-    b = np.asarray(obs.b, dtype=np.float64)
-    m_hat = perp(b / np.linalg.norm(b, axis=-1, keepdims=True))
+    m_hat = _line_normals(obs)
     err, Jp, Je, valid = edgelet_ba_terms(
         camera.kernel_params(),
         np.ascontiguousarray(poses, dtype=np.float64),
@@ -80,6 +79,12 @@ def edgelet_terms(
         np.ascontiguousarray(along, dtype=np.float64),
     )
     return EdgeletTerms(err, Jp, Je, valid)
+
+
+def _line_normals(obs: EdgeletObservations) -> np.ndarray:
+    """m̂ (M, 2): the unit normals of the measured lines."""
+    b = np.asarray(obs.b, dtype=np.float64)
+    return perp(b / np.linalg.norm(b, axis=-1, keepdims=True))
 
 
 def update_poses(poses: np.ndarray, mu: np.ndarray) -> np.ndarray:
@@ -99,14 +104,19 @@ def refine_edgelets(
     blocks of §4.4's bundle adjustment), e.g. over a new edgelet's source, target and check measurements.
     Edgelets with fewer than two valid measurements are left where they are."""
     along = sample_along(camera, poses, edgelets, obs, cfg)
+    cam = camera.kernel_params()
+    poses = np.ascontiguousarray(poses, dtype=np.float64)
+    args = (
+        np.ascontiguousarray(obs.kf, dtype=np.int64),
+        np.ascontiguousarray(obs.edgelet, dtype=np.int64),
+        np.ascontiguousarray(obs.a, dtype=np.float64),
+        np.ascontiguousarray(_line_normals(obs)),
+        np.ascontiguousarray(along, dtype=np.float64),
+    )
     for _ in range(iterations):
-        t = edgelet_terms(camera, poses, edgelets, obs, along)
-        w = t.valid.astype(np.float64)[:, None, None]
-        J = t.J_edgelet * w
-        n = len(edgelets)
-        H = _sum_by(obs.edgelet, np.einsum("msi,msj->mij", J, J).reshape(-1, 16), n).reshape(n, 4, 4)
-        g = _sum_by(obs.edgelet, np.einsum("msi,ms->mi", J, t.err * w[:, :, 0]), n)
-        count = np.bincount(obs.edgelet[t.valid], minlength=n)
+        H, g, count = edgelet_normal_equations(
+            cam, poses, np.ascontiguousarray(edgelets.frames()), *args, len(edgelets)
+        )
         # H is symmetric positive semi-definite: its condition number is the ratio of its extreme eigenvalues.
         lam = np.abs(np.linalg.eigvalsh(H))
         solvable = (count >= 2) & (lam.min(axis=1) * (1.0 / np.finfo(np.float64).eps) > lam.max(axis=1))
@@ -114,8 +124,3 @@ def refine_edgelets(
         mu[solvable] = -np.linalg.solve(H[solvable], g[solvable][..., None])[..., 0]
         edgelets = edgelets.updated(mu)
     return edgelets
-
-
-def _sum_by(index: np.ndarray, rows: np.ndarray, n: int) -> np.ndarray:
-    """(n, C) sums of ``rows`` (M, C) grouped by ``index`` (M,): one bincount per column (``np.add.at`` is slow)."""
-    return np.stack([np.bincount(index, weights=rows[:, c], minlength=n) for c in range(rows.shape[1])], axis=1)

@@ -92,3 +92,30 @@ def edgelet_ba_terms(cam, poses, frames, mkf, medg, line_a, line_n, along):
         if valid[k]:
             measurement_rows(cam, T, E, along[k], line_a[k], line_n[k], J, Jp[k], Je[k], err[k])
     return err, Jp, Je, valid
+
+
+@njit(nogil=True, cache=True)
+def edgelet_normal_equations(cam, poses, frames, mkf, medg, line_a, line_n, along, n):
+    """The edgelet blocks of the normal equations with the poses fixed: Σ JᵀJ (n, 4, 4) and Σ Jᵀε (n, 4) over
+    each edgelet's valid measurements (as ``edgelet_ba_terms`` has them), and how many there are (n,)."""
+    H = np.zeros((n, 4, 4))
+    g = np.zeros((n, 4))
+    count = np.zeros(n, dtype=np.int64)
+    J = np.empty((2, 3))
+    jp = np.empty((2, 6))
+    je = np.empty((2, 4))
+    r = np.empty(2)
+    for k in range(mkf.shape[0]):
+        T = poses[mkf[k]]
+        E = frames[medg[k]]
+        if sample_in_camera(T, E, along[k, 0])[2] <= 0.0 or sample_in_camera(T, E, along[k, 1])[2] <= 0.0:
+            continue
+        measurement_rows(cam, T, E, along[k], line_a[k], line_n[k], J, jp, je, r)
+        e = medg[k]
+        count[e] += 1
+        for s in range(2):
+            for a in range(4):
+                g[e, a] += je[s, a] * r[s]
+                for b in range(4):
+                    H[e, a, b] += je[s, a] * je[s, b]
+    return H, g, count
