@@ -50,9 +50,9 @@ def _smoothed(image: np.ndarray, cfg: EdgeletConfig) -> np.ndarray:
     return cv2.GaussianBlur(image, (0, 0), s) if s > 0 else image
 
 
-def canny_linked(image: np.ndarray, cfg: EdgeletConfig) -> np.ndarray:
+def _canny(smoothed: np.ndarray, cfg: EdgeletConfig) -> np.ndarray:
     """Canny's edgels linked by hysteresis (the candidates' source, §4.3)."""
-    return cv2.Canny(_smoothed(image, cfg), cfg.canny_low, cfg.canny_high, L2gradient=_SOBEL_L2)
+    return cv2.Canny(smoothed, cfg.canny_low, cfg.canny_high, L2gradient=_SOBEL_L2)
 
 
 def canny_edgels(image: np.ndarray, cfg: EdgeletConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -71,25 +71,32 @@ def segment_edgels(edges: np.ndarray, cfg: EdgeletConfig) -> tuple[np.ndarray, n
 
 
 def _gradient_at(img: np.ndarray, xy: np.ndarray) -> np.ndarray:
-    """Sobel gradient (N, 2) of the smoothed image at the nearest pixels to ``xy``."""
-    gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3)
-    gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3)
-    ix = np.clip(np.round(xy[:, 0]).astype(int), 0, img.shape[1] - 1)
-    iy = np.clip(np.round(xy[:, 1]).astype(int), 0, img.shape[0] - 1)
-    return np.stack([gx[iy, ix], gy[iy, ix]], axis=-1).astype(np.float64)
+    """The 3×3 Sobel gradient (N, 2) of the smoothed image at the nearest pixels to ``xy`` (inside the image by
+    at least one pixel), computed there only."""
+    ix = np.clip(np.round(xy[:, 0]).astype(int), 1, img.shape[1] - 2)
+    iy = np.clip(np.round(xy[:, 1]).astype(int), 1, img.shape[0] - 2)
+    p = img.astype(np.float64)
+
+    def at(dy: int, dx: int) -> np.ndarray:
+        return p[iy + dy, ix + dx]
+
+    gx = at(-1, 1) + 2.0 * at(0, 1) + at(1, 1) - at(-1, -1) - 2.0 * at(0, -1) - at(1, -1)
+    gy = at(1, -1) + 2.0 * at(1, 0) + at(1, 1) - at(-1, -1) - 2.0 * at(-1, 0) - at(-1, 1)
+    return np.stack([gx, gy], axis=-1)
 
 
 def extract_candidates(
     image: np.ndarray, cfg: EdgeletConfig, existing_centres: np.ndarray | None = None
 ) -> EdgeletCandidates:
     """Candidate edgelets of a full-size keyframe ``image`` away from ``existing_centres`` (K, 2) (§4.3)."""
-    centre, direction, deviation = segment_edgels(canny_linked(image, cfg), cfg)
+    smoothed = _smoothed(image, cfg)
+    centre, direction, deviation = segment_edgels(_canny(smoothed, cfg), cfg)
     b = cfg.candidate_border_px
     H, W = image.shape
     keep = (deviation <= cfg.candidate_max_deviation_px) & (centre[:, 0] >= b) & (centre[:, 1] >= b)
     keep &= (centre[:, 0] <= W - 1 - b) & (centre[:, 1] <= H - 1 - b)
     centre, direction = centre[keep], direction[keep]
-    grad = _gradient_at(_smoothed(image, cfg), centre)
+    grad = _gradient_at(smoothed, centre)
     direction = direction * np.where(np.sum(perp(direction) * grad, axis=-1) < 0, -1.0, 1.0)[:, None]
     m = measure_in_keyframe(image, centre, direction, perp(direction), cfg)
     centre, direction, rms = m.a[m.ok], m.b[m.ok], m.rms[m.ok]
