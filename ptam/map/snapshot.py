@@ -87,13 +87,15 @@ class MapSnapshot:
             X[ray] -= self.camera_centres[self.source_kf[ids[ray]]]
         return X, (~ray).astype(np.float64)
 
-    def nearest_keyframe(self, T_cw: np.ndarray) -> tuple[int, float]:
-        """Index and camera-centre distance of the keyframe nearest to pose ``T_cw`` (-1, inf without any)."""
-        if not self.n_keyframes:
+    def nearest_keyframe(self, T_cw: np.ndarray, among: np.ndarray | None = None) -> tuple[int, float]:
+        """Index and camera-centre distance of the keyframe nearest to pose ``T_cw``, of all or of the keyframe
+        indices ``among`` (-1, inf without any)."""
+        kfs = np.arange(self.n_keyframes) if among is None else np.asarray(among, dtype=np.int64)
+        if not len(kfs):
             return -1, float("inf")
-        d = np.linalg.norm(self.camera_centres - camera_centres(T_cw[None])[0], axis=1)
-        nearest = int(np.argmin(d))
-        return nearest, float(d[nearest])
+        d = np.linalg.norm(self.camera_centres[kfs] - camera_centres(T_cw[None])[0], axis=1)
+        i = int(np.argmin(d))
+        return int(kfs[i]), float(d[i])
 
     def view_travel(self, T_cw: np.ndarray) -> float:
         """Smallest rotation angle (radians) between the camera and any keyframe: the image travel of the view,

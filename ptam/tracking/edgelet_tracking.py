@@ -106,9 +106,7 @@ class EdgeletTracker:
 
     def _table(self, snapshot: MapSnapshot, T_cw: np.ndarray) -> tuple[np.ndarray, VisibilityTable]:
         """The good edgelets of the nearest keyframe (by camera centre) that has a visibility table, and it."""
-        kfs = np.fromiter(snapshot.edgelet_tables, np.int64)
-        centre = -T_cw[:3, :3].T @ T_cw[:3, 3]
-        k = int(kfs[np.argmin(np.linalg.norm(snapshot.camera_centres[kfs] - centre, axis=1))])
+        k, _ = snapshot.nearest_keyframe(T_cw, np.fromiter(snapshot.edgelet_tables, np.int64))
         ids, visible, r_search, t_min, max_blur = snapshot.edgelet_tables[k]
         good = ~snapshot.edgelet_bad[ids]
         return ids[good], VisibilityTable(self._blurs, visible[good], r_search[good], t_min[good], max_blur[good])
