@@ -123,7 +123,8 @@ def test_without_edgelets_the_result_is_the_points_only_one(problem):
 
 def _linearised(problem):
     """The inputs of the edgelet kernels at the perturbed start, 3 of 10 keyframes fixed, 5 edgelets not adjusted,
-    10 % of the measurements not in use; and the numpy reference's residuals and Jacobians there."""
+    10 % of the measurements not in use; the per-measurement terms ``ba_edgelet_rows`` computes there (err, jp, je,
+    along) and the numpy reference's residuals and Jacobians at the numpy sample points (``sample_along``)."""
     prob, eb = problem
     fixed = np.zeros(len(prob.poses_true), bool)
     fixed[[0, 4, 7]] = True
@@ -135,32 +136,54 @@ def _linearised(problem):
     P, cam = prob.poses_init[st.cams], prob.camera
     ed = eb.init.subset(es.ids)
     obs = type(eb.obs)(es.mcam, es.medg, eb.obs.a[es.sel], eb.obs.b[es.sel])
-    along = sample_along(cam, P, ed, obs, CFG.edgelets)
+    along_ref = sample_along(cam, P, ed, obs, CFG.edgelets)
     m_hat = perp(obs.b)
     use = np.random.default_rng(1).random(len(es.sel)) < 0.9
-    err, e2, bad = np.empty((len(use), 2)), np.empty(len(use)), np.empty(len(use), bool)
-    meas = (es.mcam, es.medg, obs.a, m_hat, along)
-    EK.ba_edgelet_residuals(cam.kernel_params(), P, ed.frames(), *meas, use, err, e2, bad)
-    ref = edgelet_ba_terms_ref(cam, P, ed.frames(), es.mcam, es.medg, obs.a, m_hat, along)
+    n = len(use)
+    err, e2, bad = np.empty((n, 2)), np.empty(n), np.empty(n, bool)
+    jp, je, along = np.full((n, 2, 6), 7.0), np.full((n, 2, 4), 7.0), np.empty((n, 2))
+    meas = (es.mcam, es.medg, obs.a, m_hat)
+    EK.ba_edgelet_rows(
+        cam.kernel_params(), P, ed.frames(), meas, CFG.edgelets.ba_sample_offset_px, use, along, err, jp, je, e2, bad
+    )
+    ref = edgelet_ba_terms_ref(cam, P, ed.frames(), es.mcam, es.medg, obs.a, m_hat, along_ref)
     c2 = float(np.median(e2[use])) * 9.0
-    return st, (cam.kernel_params(), P, ed.frames(), meas, use, e2, bad, c2), err, ref
+    rows = (err, jp, je, along, along_ref)
+    return st, (cam.kernel_params(), P, ed.frames(), meas, use, e2, bad, c2), rows, ref
+
+
+def test_rows_kernel_matches_reference(problem):
+    """Sample points (eq. 6), residuals (eq. 7) and Jacobian rows (eq. 8–9) of one linearisation pass against the
+    numpy ``sample_along`` and ``edgelet_ba_terms_ref``."""
+    st, (_, _, _, _, use, e2, bad, _), (err, jp, je, along, along_ref), (r_err, r_Jp, r_Je, r_valid) = _linearised(
+        problem
+    )
+    assert close(along, along_ref, 1e-12) and np.all(along[:, 0] < 0) and np.all(along[:, 1] == -along[:, 0])
+    assert np.array_equal(bad, use & ~r_valid) and r_valid.sum() > 0.9 * len(r_valid)
+    ok = use & r_valid
+    assert close(err[ok], r_err[ok]) and not err[~use].any() and close(e2, np.where(ok, np.sum(r_err**2, 1), 0.0))
+    assert close(jp[ok], r_Jp[ok]) and close(je[ok], r_Je[ok])
 
 
 def test_residuals_kernel_matches_reference(problem):
-    st, (_, _, _, _, use, e2, bad, _), err, (r_err, _, _, r_valid) = _linearised(problem)
+    """The trial steps' residuals at the linearisation's sample points."""
+    st, (cam, P, F, meas, use, _, _, _), (_, _, _, along, _), (r_err, _, _, r_valid) = _linearised(problem)
+    n = len(use)
+    err, e2, bad = np.empty((n, 2)), np.empty(n), np.empty(n, bool)
+    EK.ba_edgelet_residuals(cam, P, F, *meas, along, use, err, e2, bad)
     assert np.array_equal(bad, use & ~r_valid)
     ok = use & r_valid
     assert close(err[ok], r_err[ok]) and not err[~use].any() and close(e2, np.where(ok, np.sum(r_err**2, 1), 0.0))
 
 
 def test_kernels_match_reference(problem):
-    st, args, _, (r_err, r_Jp, r_Je, _) = _linearised(problem)
+    st, args, (err, jp, je, _, _), (r_err, r_Jp, r_Je, _) = _linearised(problem)
     cam, P, F, meas, use, e2, bad, c2 = args
     es, nf, ne = st.edgelets, st.n_free, len(st.edgelets.ids)
     U0 = np.random.default_rng(2).normal(size=(nf, 6, 6))
     U, ea = U0.copy(), np.ones((nf, 6))
     V, eb, W, live = np.empty((ne, 4, 4)), np.empty((ne, 4)), np.full((len(use), 6, 4), 7.0), np.empty(len(use), bool)
-    EK.ba_edgelet_linearise(cam, P, F, meas, use, e2, bad, c2, es.mrow, U, ea, V, eb, W, live)
+    EK.ba_edgelet_linearise(err, jp, je, e2, bad, use, c2, es.medg, es.mrow, U, ea, V, eb, W, live)
     rU, rea, rV, reb, rW, rlive = RE.ba_edgelet_linearise_ref(
         r_err, r_Jp, r_Je, e2, bad, use, c2, es.mrow, es.medg, nf, ne
     )
@@ -179,21 +202,10 @@ def test_kernels_match_reference(problem):
     assert close(de, RE.ba_edgelet_backsub_ref(Vinv, eb, W, live, es.mrow, es.medg, dcam))
 
 
-def test_sample_points_kernel_matches_sample_along(problem):
-    """Eq. 6 at the current state: the kernel against the numpy ``sample_along`` (±5 px from the centre)."""
-    prob, eb = problem
-    cam, P, F = prob.camera, prob.poses_init, eb.init.frames()
-    kf, e = eb.obs.kf.astype(np.int64), eb.obs.edgelet.astype(np.int64)
-    along = np.empty((len(kf), 2))
-    EK.ba_edgelet_along(cam.kernel_params(), P, F, kf, e, CFG.edgelets.ba_sample_offset_px, along)
-    ref = sample_along(cam, P, eb.init, eb.obs, CFG.edgelets)
-    assert close(along, ref, 1e-12) and np.all(along[:, 0] < 0) and np.all(along[:, 1] == -along[:, 0])
-
-
 def test_one_walk_numbers_the_pairs_of_points_and_edgelets(problem):
     """The reduced system of points and edgelets together is the sum of the two references'."""
     prob, _ = problem
-    st, args, _, _ = _linearised(problem)
+    st, args, rows, _ = _linearised(problem)
     cam_p, P, F, meas, use, e2, bad, c2 = args
     es, nf, ne, m = st.edgelets, st.n_free, len(st.edgelets.ids), len(st.pts)
     X = prob.points_init[st.pts]
@@ -204,7 +216,8 @@ def test_one_walk_numbers_the_pairs_of_points_and_edgelets(problem):
     uv, every = prob.meas_xy[st.sel], np.ones(k, bool)
     K.ba_linearise(cam_p, P, X, st.mcam, st.mpt, uv, inv_sigma, every, 1e6, st.cam_row, U, ea, V, eb, W, live)
     Ve, ebe, We, livee = np.empty((ne, 4, 4)), np.empty((ne, 4)), np.zeros((len(use), 6, 4)), np.empty(len(use), bool)
-    EK.ba_edgelet_linearise(cam_p, P, F, meas, use, e2, bad, c2, es.mrow, U, ea, Ve, ebe, We, livee)
+    err, jp, je = rows[:3]
+    EK.ba_edgelet_linearise(err, jp, je, e2, bad, use, c2, es.medg, es.mrow, U, ea, Ve, ebe, We, livee)
     lam = 1e-2
     blocks, rhs = np.empty((len(st.pair_rows), 6, 6)), np.empty(6 * nf)
     K.ba_schur(U, ea, V, eb, W, live, lam, st.mrow, st.pt_start, st.order, st.pair_id, blocks, rhs, np.empty_like(V))
@@ -214,3 +227,16 @@ def test_one_walk_numbers_the_pairs_of_points_and_edgelets(problem):
     pS, prhs, _ = R.ba_schur_ref(U, ea, V, eb, W, live, lam, st.mrow, st.mpt)
     eS, erhs, _ = RE.ba_edgelet_schur_ref(Ve, ebe, We, livee, lam, es.mrow, es.medg, nf)
     assert close(assemble(blocks, st.pair_rows, st.pair_cols, nf), pS + eS) and close(rhs, prhs + erhs)
+
+
+def test_frames_update_kernel_matches_edgelets_updated(problem):
+    """The trial step's frame update (eq. 9 with re-orthonormalisation) against ``Edgelets.updated``, for steps up
+    to a few centimetres and degrees."""
+    _, eb = problem
+    de = np.random.default_rng(4).normal(size=(len(eb.init), 4)) * np.array([0.02, 0.02, 0.05, 0.05])
+    out = np.empty((len(eb.init), 4, 4))
+    EK.ba_edgelet_frames_updated(eb.init.frames(), de, out)
+    assert close(out, eb.init.updated(de).frames(), 1e-12)
+    assert close(
+        np.einsum("nji,njk->nik", out[:, :3, :3], out[:, :3, :3]), np.broadcast_to(np.eye(3), (len(de), 3, 3)), 1e-12
+    )

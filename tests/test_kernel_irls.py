@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from ptam.geometry import se3
-from ptam.tracking.pose_kernels import normal_equations, pose_irls, se3_exp, tukey_sigma_sq
+from ptam.geometry.se3_kernels import se3_exp
+from ptam.tracking.pose_kernels import normal_equations, pose_irls, tukey_sigma_sq
 from tests.reference.pose import normal_equations_ref, pose_irls_ref, tukey_sigma_sq_ref
 from tests.support.cameras import CAMERAS
 

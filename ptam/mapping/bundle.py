@@ -196,7 +196,7 @@ class Bundle:
         cost = ba_linearise(
             cam, s.P, s.X, st.mcam, st.mpt, s.uv, s.inv_sigma, s.use, c2, st.cam_row, s.U, s.ea, s.V, s.eb, s.W, s.live
         )
-        cost += s.edg.linearise(s.P, c2, (s.U, s.ea))
+        cost += s.edg.linearise(c2, (s.U, s.ea))
         phases["linearise"] += time.perf_counter() - t
         return cost
 

@@ -1,18 +1,21 @@
 """Bundle-adjustment kernels for edgelets: their 4-DOF blocks in PTAM's Schur-complement LM (Agility §4.4).
 
-``ba_edgelet_along`` places the two virtual sample points of eq. 6 ±5 px from the projected centre at the current
-state. An edgelet is eliminated exactly like a point (PTAM §6.3, Hartley & Zisserman A6.4), with 4×4 blocks
+An edgelet is eliminated exactly like a point (PTAM §6.3, Hartley & Zisserman A6.4), with 4×4 blocks
 instead of 3×3: per measurement the two perpendicular distances ε_n (eq. 7) and their Jacobians ∂ε/∂μ_K (2×6,
 eq. 8) and ∂ε/∂μ_E (2×4, eq. 9), as ``ptam.edgelet.edgelet_ba_kernels.edgelet_ba_terms`` has them, are weighted by
 the Tukey biweight and accumulated:
 
-* ``ba_edgelet_residuals``: ε and |ε|² alone (the Tukey cut-off's input and the trial steps' cost).
-* ``ba_edgelet_linearise``: camera blocks U (6×6, added to the points' U), edgelet blocks V (4×4), camera-edgelet
-  blocks W = AᵀB (6×4) and the gradients ε_a, ε_b. ε is predicted − measured, the points' error measured −
-  predicted; the gradients take −ε so that one step solves both.
+* ``ba_edgelet_rows``: at each linearisation, the two virtual sample points of eq. 6 placed ±5 px from the
+  projected centre at the current state, then ε, |ε|² (the Tukey cut-off's input) and the Jacobian rows, in one
+  pass over the measurements (each sample point is projected once).
+* ``ba_edgelet_residuals``: ε and |ε|² alone, at the sample points of the linearisation (the trial steps' cost).
+* ``ba_edgelet_linearise``: from those rows and the Tukey cut-off, camera blocks U (6×6, added to the points' U),
+  edgelet blocks V (4×4), camera-edgelet blocks W = AᵀB (6×4) and the gradients ε_a, ε_b. ε is predicted −
+  measured, the points' error measured − predicted; the gradients take −ε so that one step solves both.
 * ``ba_edgelet_schur``: S −= Σ W V*⁻¹ Wᵀ over every camera pair that shares an edgelet and the reduced
   right-hand side, V* the diagonal × (1 + λ); it continues the walk of ``ba_pair_script`` after the points.
-* the edgelet updates δμ_E = V*⁻¹ (ε_b − Σ Wᵀ δμ_K) are ``bundle_kernels.ba_backsub``'s, as for points.
+* the edgelet updates δμ_E = V*⁻¹ (ε_b − Σ Wᵀ δμ_K) are ``bundle_kernels.ba_backsub``'s, as for points;
+  ``ba_edgelet_frames_updated`` applies them to the frames (``Edgelets.updated``).
 
 Per Agility §8 every distance has unit (one-pixel) variance. The numpy references are in
 ``tests/reference/bundle_edgelets.py``.
@@ -27,33 +30,54 @@ from numba import njit
 
 from ..camera.camproj_kernels import project, project_jac
 from ..edgelet.edgelet_ba_kernels import measurement_rows, sample_in_camera
+from ..geometry.se3_kernels import se3_exp
 from .bundle_kernels import eliminate
 
 
+@njit(nogil=True, cache=True, inline="always")
+def _along(cam, T, E, offset_px, J):
+    """Eq. 6: the E-frame z of the sample points ±``offset_px`` px from the projected centre (∓z, z), z =
+    ``offset_px``/|d|, |d| the image length of a unit step along the edgelet (eq. 5) at its centre; 0 when the
+    centre is behind the camera."""
+    X = T[0, 0] * E[0, 3] + T[0, 1] * E[1, 3] + T[0, 2] * E[2, 3] + T[0, 3]
+    Y = T[1, 0] * E[0, 3] + T[1, 1] * E[1, 3] + T[1, 2] * E[2, 3] + T[1, 3]
+    Z = T[2, 0] * E[0, 3] + T[2, 1] * E[1, 3] + T[2, 2] * E[2, 3] + T[2, 3]
+    dx = T[0, 0] * E[0, 2] + T[0, 1] * E[1, 2] + T[0, 2] * E[2, 2]
+    dy = T[1, 0] * E[0, 2] + T[1, 1] * E[1, 2] + T[1, 2] * E[2, 2]
+    dz = T[2, 0] * E[0, 2] + T[2, 1] * E[1, 2] + T[2, 2] * E[2, 2]
+    _, _, ok = project_jac(cam, X, Y, Z, J)
+    if not ok:
+        return 0.0
+    du = J[0, 0] * dx + J[0, 1] * dy + J[0, 2] * dz
+    dv = J[1, 0] * dx + J[1, 1] * dy + J[1, 2] * dz
+    return offset_px / max(math.sqrt(du * du + dv * dv), 1e-12)
+
+
 @njit(nogil=True, cache=True)
-def ba_edgelet_along(cam, poses, frames, mcam, medg, offset_px, along):
-    """Eq. 6: the E-frame z of each measurement's two sample points, ∓``offset_px``/|d|, |d| the image length of a
-    unit step along the edgelet (eq. 5) at its centre in that keyframe; ``along`` (M, 2) is written."""
+def ba_edgelet_rows(cam, poses, frames, meas, offset_px, use, along, err, jp, je, e2, bad):
+    """One linearisation's per-measurement terms in one pass: the sample points placed at the current state (eq. 6,
+    ``along`` (M, 2), every measurement) and, for those in ``use``, the residuals ``err`` (M, 2) px, their Jacobian
+    rows ``jp`` (M, 2, 6), ``je`` (M, 2, 4) (eq. 7–9, ``edgelet_ba_terms``), e2 = ε₁² + ε₂² and bad = a sample
+    point behind the camera. ``meas`` = (mcam, medg, line_a, line_n)."""
+    mcam, medg, line_a, line_n = meas
     J = np.empty((2, 3))
     for k in range(mcam.shape[0]):
         T = poses[mcam[k]]
         E = frames[medg[k]]
-        X = T[0, 0] * E[0, 3] + T[0, 1] * E[1, 3] + T[0, 2] * E[2, 3] + T[0, 3]
-        Y = T[1, 0] * E[0, 3] + T[1, 1] * E[1, 3] + T[1, 2] * E[2, 3] + T[1, 3]
-        Z = T[2, 0] * E[0, 3] + T[2, 1] * E[1, 3] + T[2, 2] * E[2, 3] + T[2, 3]
-        dx = T[0, 0] * E[0, 2] + T[0, 1] * E[1, 2] + T[0, 2] * E[2, 2]
-        dy = T[1, 0] * E[0, 2] + T[1, 1] * E[1, 2] + T[1, 2] * E[2, 2]
-        dz = T[2, 0] * E[0, 2] + T[2, 1] * E[1, 2] + T[2, 2] * E[2, 2]
-        _, _, ok = project_jac(cam, X, Y, Z, J)
-        if not ok:  # the centre is behind the camera: the measurement is invalid (edgelet_ba_terms)
-            along[k, 0] = 0.0
-            along[k, 1] = 0.0
-            continue
-        du = J[0, 0] * dx + J[0, 1] * dy + J[0, 2] * dz
-        dv = J[1, 0] * dx + J[1, 1] * dy + J[1, 2] * dz
-        z = offset_px / max(math.sqrt(du * du + dv * dv), 1e-12)
+        z = _along(cam, T, E, offset_px, J)
         along[k, 0] = -z
         along[k, 1] = z
+        err[k, 0] = 0.0
+        err[k, 1] = 0.0
+        e2[k] = 0.0
+        bad[k] = False
+        if not use[k]:
+            continue
+        bad[k] = sample_in_camera(T, E, -z)[2] <= 0.0 or sample_in_camera(T, E, z)[2] <= 0.0
+        if bad[k]:
+            continue
+        measurement_rows(cam, T, E, along[k], line_a[k], line_n[k], J, jp[k], je[k], err[k])
+        e2[k] = err[k, 0] * err[k, 0] + err[k, 1] * err[k, 1]
 
 
 @njit(nogil=True, cache=True)
@@ -84,28 +108,21 @@ def ba_edgelet_residuals(cam, poses, frames, mcam, medg, line_a, line_n, along, 
 
 
 @njit(nogil=True, cache=True)
-def ba_edgelet_linearise(cam, poses, frames, meas, use, e2, bad, c2, mrow, U, ea, V, eb, W, live):
+def ba_edgelet_linearise(err, jp, je, e2, bad, use, c2, medg, mrow, U, ea, V, eb, W, live):
     """Add the Tukey-weighted edgelet terms to U, ε_a (free camera rows ``mrow``, −1 fixed) and set V, ε_b and W
-    (per measurement); ``live`` (out) marks the measurements in the system. ``meas`` = (mcam, medg, line_a,
-    line_n, along); ``e2``, ``bad`` from ``ba_edgelet_residuals``; residuals and Jacobians are those of
-    ``edgelet_ba_terms`` (eq. 7–9)."""
-    mcam, medg, line_a, line_n, along = meas
+    (per measurement); ``live`` (out) marks the measurements in the system. ``err``, ``jp``, ``je``, ``e2``,
+    ``bad`` from ``ba_edgelet_rows``."""
     V[:] = 0.0
     eb[:] = 0.0
-    J = np.empty((2, 3))
-    jp = np.empty((2, 6))
-    je = np.empty((2, 4))
-    res = np.empty(2)
-    for k in range(mcam.shape[0]):
+    for k in range(medg.shape[0]):
         live[k] = False
         W[k] = 0.0
         if not use[k] or bad[k] or e2[k] >= c2:
             continue
         live[k] = True
-        measurement_rows(cam, poses[mcam[k]], frames[medg[k]], along[k], line_a[k], line_n[k], J, jp, je, res)
         # Square root of the Tukey weight on the errors and the Jacobians, as for points (PTAM code).
         sw = 1.0 - e2[k] / c2
-        _accumulate(jp, je, res, sw, medg[k], mrow[k], k, U, ea, V, eb, W)
+        _accumulate(jp[k], je[k], err[k], sw, medg[k], mrow[k], k, U, ea, V, eb, W)
     for e in range(V.shape[0]):
         for a in range(4):
             for b in range(a):
@@ -175,3 +192,29 @@ def ba_edgelet_schur(V, eb, W, live, lam, mrow, e_start, order, pair_id, blocks,
     for e in range(e_start.shape[0] - 1):
         inv_sym4(V[e], lam, Vinv[e], L, Li)
     eliminate(Vinv, eb, W, live, mrow, e_start, order, pair_id, blocks, rhs)
+
+
+@njit(nogil=True, cache=True)
+def ba_edgelet_frames_updated(F, de, out):
+    """E_WE ← E_WE · exp(μ) for μ = (t_x, t_y, ω_x, ω_y) (E, 4) in each edgelet's own frame (eq. 9), written to
+    ``out`` (E, 4, 4) re-orthonormalised as ``Edgelets.orthonormalised`` does: the direction (z) normalised, the
+    normal (x) made perpendicular to it and normalised, y = z × x."""
+    mu = np.zeros(6)
+    for e in range(F.shape[0]):
+        mu[0] = de[e, 0]
+        mu[1] = de[e, 1]
+        mu[3] = de[e, 2]
+        mu[4] = de[e, 3]
+        M = F[e] @ se3_exp(mu)
+        zn = math.sqrt(M[0, 2] ** 2 + M[1, 2] ** 2 + M[2, 2] ** 2)
+        z0, z1, z2 = M[0, 2] / zn, M[1, 2] / zn, M[2, 2] / zn
+        xz = M[0, 0] * z0 + M[1, 0] * z1 + M[2, 0] * z2
+        x0, x1, x2 = M[0, 0] - xz * z0, M[1, 0] - xz * z1, M[2, 0] - xz * z2
+        xn = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+        x0, x1, x2 = x0 / xn, x1 / xn, x2 / xn
+        out[e] = 0.0
+        out[e, 0, 0], out[e, 1, 0], out[e, 2, 0] = x0, x1, x2
+        out[e, 0, 1], out[e, 1, 1], out[e, 2, 1] = z1 * x2 - z2 * x1, z2 * x0 - z0 * x2, z0 * x1 - z1 * x0
+        out[e, 0, 2], out[e, 1, 2], out[e, 2, 2] = z0, z1, z2
+        out[e, 0, 3], out[e, 1, 3], out[e, 2, 3] = M[0, 3], M[1, 3], M[2, 3]
+        out[e, 3, 3] = 1.0

@@ -27,24 +27,17 @@ from __future__ import annotations
 import numpy as np
 
 from ..camera.model import CameraModel
-from ..edgelet import EDGELET_DOF, Edgelets, perp
-from ..geometry import se3
+from ..edgelet import Edgelets, perp
 from .bundle_edgelet_kernels import (
-    ba_edgelet_along,
+    ba_edgelet_frames_updated,
     ba_edgelet_linearise,
     ba_edgelet_residuals,
+    ba_edgelet_rows,
     ba_edgelet_schur,
 )
 from .bundle_inputs import EdgeletBundleInput
 from .bundle_kernels import ba_backsub, ba_robust_cost
 from .bundle_structure import BundleStructure, EdgeletStructure
-
-
-def _frames_updated(F: np.ndarray, de: np.ndarray) -> np.ndarray:
-    """E_WE ← E_WE · exp(μ) for μ (E, 4) in each edgelet's own frame, re-orthonormalised (``Edgelets.updated``)."""
-    mu6 = np.zeros((len(F), 6))
-    mu6[:, EDGELET_DOF] = de
-    return Edgelets.from_frames(F @ se3.exp(mu6)).frames()
 
 
 class EdgeletLM:
@@ -74,6 +67,8 @@ class EdgeletLM:
         self.W = np.zeros((self.n, 6, 4))
         self.Vinv = np.zeros((ne, 4, 4))
         self.err = np.zeros((self.n, 2))
+        self.jp = np.zeros((self.n, 2, 6))
+        self.je = np.zeros((self.n, 2, 4))
 
     def _residuals(self, P: np.ndarray, F: np.ndarray, use: np.ndarray) -> None:
         """e2 and bad (a sample point behind the camera) of the measurements in ``use`` at poses P, frames F."""
@@ -83,29 +78,42 @@ class EdgeletLM:
         )
 
     def residuals(self, P: np.ndarray) -> None:
-        """The sample points placed at the current state (eq. 6), then the residuals there; a trial keeps the
-        sample points of its linearisation, so that its cost is comparable."""
+        """The sample points placed at the current state (eq. 6), then the residuals there and their Jacobian rows
+        (for ``linearise``); a trial keeps the sample points of its linearisation, so that its cost is comparable."""
         if self.n:
             es = self.es
-            ba_edgelet_along(self.cam, P, self.F, es.mcam, es.medg, self.offset_px, self.along)
-            self._residuals(P, self.F, self.use)
+            meas = (es.mcam, es.medg, self.a, self.m_hat)
+            ba_edgelet_rows(
+                self.cam,
+                P,
+                self.F,
+                meas,
+                self.offset_px,
+                self.use,
+                self.along,
+                self.err,
+                self.jp,
+                self.je,
+                self.e2,
+                self.bad,
+            )
 
-    def linearise(self, P: np.ndarray, c2: float, cam_row_blocks: tuple[np.ndarray, np.ndarray]) -> float:
-        """Add the edgelets' Tukey-weighted terms to the camera blocks (U, ε_a); their robust cost."""
+    def linearise(self, c2: float, cam_row_blocks: tuple[np.ndarray, np.ndarray]) -> float:
+        """Add the edgelets' Tukey-weighted terms (at the state of the last ``residuals``) to the camera blocks
+        (U, ε_a); their robust cost."""
         if not self.n:
             return 0.0
         U, ea = cam_row_blocks
         es = self.es
-        meas = (es.mcam, es.medg, self.a, self.m_hat, self.along)
         ba_edgelet_linearise(
-            self.cam,
-            P,
-            self.F,
-            meas,
-            self.use,
+            self.err,
+            self.jp,
+            self.je,
             self.e2,
             self.bad,
+            self.use,
             c2,
+            es.medg,
             es.mrow,
             U,
             ea,
@@ -145,7 +153,8 @@ class EdgeletLM:
         """The frames after the step ``de`` and their cost at ``P_new`` on the measurements live at linearisation."""
         if not self.n:
             return None, 0.0
-        F_new = _frames_updated(self.F, de)
+        F_new = np.empty_like(self.F)
+        ba_edgelet_frames_updated(self.F, de, F_new)
         self._residuals(P_new, F_new, self.live)
         return F_new, float(ba_robust_cost(self.e2, self.bad, self.live, c2))
 
