@@ -233,6 +233,7 @@ class SystemConfig:
     mapper_idle_wait_s: Annotated[float, Range("(0, inf)")]
     async_waits_for_local_ba: bool
     report_poor_poses: bool
+    report_edgelet_held_poses: bool
     mapper_wait_max_s: Annotated[float, Range("(0, inf)")]
     map_checkpoint_keyframes: Annotated[int, Range("[0, inf)")]
     output_flush_s: Annotated[float, Range("(0, inf)")]

@@ -258,8 +258,21 @@ class System(Initialisation, KeyframePolicy, Tracks):
         unless ``system.report_poor_poses``: a wrong pose is worse than a lost frame, and on blurred footage half
         the poor frames were more than 20 mm or 2° off against 1 % of the good ones (desk_blur). Under rapid
         motion the pose is reported as PTAM reports it: failure detection is suspended there (Agility §8) and
-        the rotation estimator carries the pose through a saccade (§9.3)."""
-        return res.quality == Quality.GOOD or (res.tracked and (self.cfg.system.report_poor_poses or res.rapid_motion))
+        the rotation estimator carries the pose through a saccade (§9.3). And a frame poor by its patches, or bad
+        by them under rapid motion, is reported when its edgelets held (``_edgelets_held``)."""
+        if res.quality == Quality.GOOD or (res.tracked and (self.cfg.system.report_poor_poses or res.rapid_motion)):
+            return True
+        return (res.tracked or res.rapid_motion) and self._edgelets_held(res)
+
+    def _edgelets_held(self, res) -> bool:
+        """The edgelets were found as a good frame's patches are: at least ``edgelets.track_min_found`` (enough
+        for the final pose to be [R|t] from points and edgelets) and a found fraction above PTAM's
+        ``tracker.quality_good``. Blur that smears the patches past PTAM's quality check leaves edges (Agility §5),
+        and Agility §8 tracks through it; its failure check counts points alone, which under fast motion says
+        little about a pose the edgelets fix (``system.report_edgelet_held_poses``)."""
+        n, found = res.n_edgelets_attempted, res.n_edgelets_found
+        held = found >= self.cfg.edgelets.track_min_found and found > self.cfg.tracker.quality_good * n
+        return self.cfg.system.report_edgelet_held_poses and held
 
     def _confirm(self, res) -> FrameOutcome:
         """A relocalisation (Agility §7) counts only once the tracker confirms it: ``reloc.confirm_frames``
