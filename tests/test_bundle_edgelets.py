@@ -6,6 +6,7 @@ import pytest
 
 from ptam.config import default_config
 from ptam.edgelet import perp, sample_along
+from ptam.edgelet.edgelet_ba_kernels import frames_updated
 from ptam.geometry import so3
 from ptam.map.snapshot import camera_centres
 from ptam.mapping import bundle_edgelet_kernels as EK
@@ -15,7 +16,7 @@ from ptam.mapping.bundle_inputs import EdgeletBundleInput
 from ptam.mapping.bundle_structure import build_structure
 from tests.reference import bundle as R
 from tests.reference import bundle_edgelets as RE
-from tests.reference.edgelet_ba import edgelet_ba_terms_ref
+from tests.reference.edgelet_ba import edgelet_ba_terms_ref, edgelets_updated_ref
 from tests.support.ba_problems import edgelet_errors, synthetic_edgelets, synthetic_workspace_problem
 
 CFG = default_config()
@@ -229,14 +230,14 @@ def test_one_walk_numbers_the_pairs_of_points_and_edgelets(problem):
     assert close(assemble(blocks, st.pair_rows, st.pair_cols, nf), pS + eS) and close(rhs, prhs + erhs)
 
 
-def test_frames_update_kernel_matches_edgelets_updated(problem):
-    """The trial step's frame update (eq. 9 with re-orthonormalisation) against ``Edgelets.updated``, for steps up
-    to a few centimetres and degrees."""
+def test_frames_update_kernel_matches_reference(problem):
+    """The frame update of eq. 9 with re-orthonormalisation (``Edgelets.updated``, the BA's trial steps) against
+    numpy's batched SE(3) exponential and Gram–Schmidt, for steps up to a few centimetres and degrees."""
     _, eb = problem
     de = np.random.default_rng(4).normal(size=(len(eb.init), 4)) * np.array([0.02, 0.02, 0.05, 0.05])
     out = np.empty((len(eb.init), 4, 4))
-    EK.ba_edgelet_frames_updated(eb.init.frames(), de, out)
-    assert close(out, eb.init.updated(de).frames(), 1e-12)
-    assert close(
-        np.einsum("nji,njk->nik", out[:, :3, :3], out[:, :3, :3]), np.broadcast_to(np.eye(3), (len(de), 3, 3)), 1e-12
-    )
+    frames_updated(eb.init.frames(), de, out)
+    assert close(out, edgelets_updated_ref(eb.init, de).frames(), 1e-12)
+    assert close(eb.init.updated(de).frames(), out, 1e-15)
+    RtR = np.einsum("nji,njk->nik", out[:, :3, :3], out[:, :3, :3])
+    assert close(RtR, np.broadcast_to(np.eye(3), (len(de), 3, 3)), 1e-12)

@@ -52,6 +52,7 @@ class EdgeletConfig:
     epipolar_vertices: Annotated[int, Range("[2, inf)")]
     epipolar_step_px: Annotated[float, Range("(0, inf)")]
     epipolar_min_angle_deg: Annotated[float, Range("[0, 90)")]
+    aperture_retry: bool
     epipolar_dilate_px: Annotated[int, Range("[0, inf)")]
     hypothesis_merge_px: Annotated[float, Range("[0, inf)")]
     refine_iterations: Annotated[int, Range("[0, inf)")]

@@ -10,7 +10,7 @@ per-keyframe visibility table (``sawtooth``).
 
 from .edgelet import EDGELET_DOF, Edgelets, frames_from_first_view, perp
 from .edgelet_ba import EdgeletObservations, EdgeletTerms, edgelet_terms, refine_edgelets, sample_along
-from .edgelet_candidates import EdgeletCandidates, canny_edgels, extract_candidates
+from .edgelet_candidates import EdgeletCandidates, extract_candidates, gradient_at, maximal_edgels, smoothed
 from .edgelet_measure import LineMeasurements, measure_in_keyframe
 from .edgelet_projection import ImageEdgelets, blur_lengths, perpendicular_pose_jacobian, project_edgelets
 from .edgelet_triangulation import Triangulation, Verification, line_planes, triangulate_edgelets, verify_edgelets
@@ -30,17 +30,19 @@ __all__ = [
     "VisibilityTable",
     "blur_lengths",
     "build_visibility_table",
-    "canny_edgels",
     "edgelet_terms",
     "extract_candidates",
+    "gradient_at",
     "frames_from_first_view",
     "line_planes",
+    "maximal_edgels",
     "measure_in_keyframe",
     "perp",
     "perpendicular_pose_jacobian",
     "project_edgelets",
     "refine_edgelets",
     "sample_along",
+    "smoothed",
     "search_edgelets",
     "table_blurs",
     "triangulate_edgelets",

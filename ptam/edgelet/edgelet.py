@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..geometry import se3
+from .edgelet_ba_kernels import frames_updated
 
 # Indices of the four edgelet degrees of freedom in the six-vector μ = (t_x, t_y, t_z, ω_x, ω_y, ω_z) (eq. 9).
 EDGELET_DOF = (0, 1, 3, 4)
@@ -76,10 +77,10 @@ class Edgelets:
 
     def updated(self, mu: np.ndarray) -> Edgelets:
         """E_WE ← E_WE · exp(μ) for μ (N, 4) = (t_x, t_y, ω_x, ω_y) in each edgelet's own frame (eq. 9)."""
-        mu = np.asarray(mu, dtype=np.float64).reshape(len(self), 4)
-        mu6 = np.zeros((len(self), 6))
-        mu6[:, EDGELET_DOF] = mu
-        return Edgelets.from_frames(self.frames() @ se3.exp(mu6))
+        mu = np.ascontiguousarray(mu, dtype=np.float64).reshape(len(self), 4)
+        out = np.empty((len(self), 4, 4))
+        frames_updated(np.ascontiguousarray(self.frames()), mu, out)  # re-orthonormalised as ``orthonormalised``
+        return Edgelets(out[:, :3, 3], out[:, :3, 2], out[:, :3, 0])
 
     def subset(self, index) -> Edgelets:
         return Edgelets(self.centre[index], self.direction[index], self.normal[index])

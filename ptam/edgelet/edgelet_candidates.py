@@ -43,7 +43,7 @@ class EdgeletCandidates:
         return len(self.centre)
 
 
-def _smoothed(image: np.ndarray, cfg: EdgeletConfig) -> np.ndarray:
+def smoothed(image: np.ndarray, cfg: EdgeletConfig) -> np.ndarray:
     if image.ndim != 2 or image.dtype != np.uint8:
         raise InputError(f"edgelet candidates need a 2-D uint8 image, got {image.dtype} {image.shape}")
     s = cfg.canny_blur_sigma
@@ -55,12 +55,15 @@ def _canny(smoothed: np.ndarray, cfg: EdgeletConfig) -> np.ndarray:
     return cv2.Canny(smoothed, cfg.canny_low, cfg.canny_high, L2gradient=_SOBEL_L2)
 
 
+def maximal_edgels(smoothed_image: np.ndarray, cfg: EdgeletConfig) -> np.ndarray:
+    """Every non-maximum-suppressed edgel above Canny's low threshold (no hysteresis) of a ``smoothed`` image."""
+    return cv2.Canny(smoothed_image, cfg.canny_low, cfg.canny_low, L2gradient=_SOBEL_L2)
+
+
 def canny_edgels(image: np.ndarray, cfg: EdgeletConfig) -> tuple[np.ndarray, np.ndarray]:
     """(edgels, maximal): Canny's linked edgels and every non-maximum-suppressed edgel above the low threshold."""
-    img = _smoothed(image, cfg)
-    edges = cv2.Canny(img, cfg.canny_low, cfg.canny_high, L2gradient=_SOBEL_L2)
-    maximal = cv2.Canny(img, cfg.canny_low, cfg.canny_low, L2gradient=_SOBEL_L2)
-    return edges, maximal
+    img = smoothed(image, cfg)
+    return _canny(img, cfg), maximal_edgels(img, cfg)
 
 
 def segment_edgels(edges: np.ndarray, cfg: EdgeletConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -70,15 +73,14 @@ def segment_edgels(edges: np.ndarray, cfg: EdgeletConfig) -> tuple[np.ndarray, n
     return split_chains(points, starts, float(cfg.length_px), int(cfg.link_turn_window_px), min_cos)
 
 
-def _gradient_at(img: np.ndarray, xy: np.ndarray) -> np.ndarray:
-    """The 3×3 Sobel gradient (N, 2) of the smoothed image at the nearest pixels to ``xy`` (inside the image by
-    at least one pixel), computed there only."""
-    ix = np.clip(np.round(xy[:, 0]).astype(int), 1, img.shape[1] - 2)
-    iy = np.clip(np.round(xy[:, 1]).astype(int), 1, img.shape[0] - 2)
-    p = img.astype(np.float64)
+def gradient_at(smoothed_image: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """The 3×3 Sobel gradient (N, 2) of a ``smoothed`` image at the nearest pixels to ``xy`` (inside the image by
+    at least one pixel), computed there only (cv2.Sobel's values there)."""
+    ix = np.clip(np.round(xy[:, 0]).astype(int), 1, smoothed_image.shape[1] - 2)
+    iy = np.clip(np.round(xy[:, 1]).astype(int), 1, smoothed_image.shape[0] - 2)
 
     def at(dy: int, dx: int) -> np.ndarray:
-        return p[iy + dy, ix + dx]
+        return smoothed_image[iy + dy, ix + dx].astype(np.float64)
 
     gx = at(-1, 1) + 2.0 * at(0, 1) + at(1, 1) - at(-1, -1) - 2.0 * at(0, -1) - at(1, -1)
     gy = at(1, -1) + 2.0 * at(1, 0) + at(1, 1) - at(-1, -1) - 2.0 * at(-1, 0) - at(-1, 1)
@@ -89,14 +91,14 @@ def extract_candidates(
     image: np.ndarray, cfg: EdgeletConfig, existing_centres: np.ndarray | None = None
 ) -> EdgeletCandidates:
     """Candidate edgelets of a full-size keyframe ``image`` away from ``existing_centres`` (K, 2) (§4.3)."""
-    smoothed = _smoothed(image, cfg)
-    centre, direction, deviation = segment_edgels(_canny(smoothed, cfg), cfg)
+    sm = smoothed(image, cfg)
+    centre, direction, deviation = segment_edgels(_canny(sm, cfg), cfg)
     b = cfg.candidate_border_px
     H, W = image.shape
     keep = (deviation <= cfg.candidate_max_deviation_px) & (centre[:, 0] >= b) & (centre[:, 1] >= b)
     keep &= (centre[:, 0] <= W - 1 - b) & (centre[:, 1] <= H - 1 - b)
     centre, direction = centre[keep], direction[keep]
-    grad = _gradient_at(smoothed, centre)
+    grad = gradient_at(sm, centre)
     direction = direction * np.where(np.sum(perp(direction) * grad, axis=-1) < 0, -1.0, 1.0)[:, None]
     m = measure_in_keyframe(image, centre, direction, perp(direction), cfg)
     centre, direction, rms = m.a[m.ok], m.b[m.ok], m.rms[m.ok]

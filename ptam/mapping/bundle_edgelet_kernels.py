@@ -15,7 +15,7 @@ the Tukey biweight and accumulated:
 * ``ba_edgelet_schur``: S −= Σ W V*⁻¹ Wᵀ over every camera pair that shares an edgelet and the reduced
   right-hand side, V* the diagonal × (1 + λ); it continues the walk of ``ba_pair_script`` after the points.
 * the edgelet updates δμ_E = V*⁻¹ (ε_b − Σ Wᵀ δμ_K) are ``bundle_kernels.ba_backsub``'s, as for points;
-  ``ba_edgelet_frames_updated`` applies them to the frames (``Edgelets.updated``).
+  ``ptam.edgelet.edgelet_ba_kernels.frames_updated`` applies them to the frames (``Edgelets.updated``).
 
 Per Agility §8 every distance has unit (one-pixel) variance. The numpy references are in
 ``tests/reference/bundle_edgelets.py``.
@@ -30,7 +30,6 @@ from numba import njit
 
 from ..camera.camproj_kernels import project, project_jac
 from ..edgelet.edgelet_ba_kernels import measurement_rows, sample_in_camera
-from ..geometry.se3_kernels import se3_exp
 from .bundle_kernels import eliminate
 
 
@@ -192,29 +191,3 @@ def ba_edgelet_schur(V, eb, W, live, lam, mrow, e_start, order, pair_id, blocks,
     for e in range(e_start.shape[0] - 1):
         inv_sym4(V[e], lam, Vinv[e], L, Li)
     eliminate(Vinv, eb, W, live, mrow, e_start, order, pair_id, blocks, rhs)
-
-
-@njit(nogil=True, cache=True)
-def ba_edgelet_frames_updated(F, de, out):
-    """E_WE ← E_WE · exp(μ) for μ = (t_x, t_y, ω_x, ω_y) (E, 4) in each edgelet's own frame (eq. 9), written to
-    ``out`` (E, 4, 4) re-orthonormalised as ``Edgelets.orthonormalised`` does: the direction (z) normalised, the
-    normal (x) made perpendicular to it and normalised, y = z × x."""
-    mu = np.zeros(6)
-    for e in range(F.shape[0]):
-        mu[0] = de[e, 0]
-        mu[1] = de[e, 1]
-        mu[3] = de[e, 2]
-        mu[4] = de[e, 3]
-        M = F[e] @ se3_exp(mu)
-        zn = math.sqrt(M[0, 2] ** 2 + M[1, 2] ** 2 + M[2, 2] ** 2)
-        z0, z1, z2 = M[0, 2] / zn, M[1, 2] / zn, M[2, 2] / zn
-        xz = M[0, 0] * z0 + M[1, 0] * z1 + M[2, 0] * z2
-        x0, x1, x2 = M[0, 0] - xz * z0, M[1, 0] - xz * z1, M[2, 0] - xz * z2
-        xn = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
-        x0, x1, x2 = x0 / xn, x1 / xn, x2 / xn
-        out[e] = 0.0
-        out[e, 0, 0], out[e, 1, 0], out[e, 2, 0] = x0, x1, x2
-        out[e, 0, 1], out[e, 1, 1], out[e, 2, 1] = z1 * x2 - z2 * x1, z2 * x0 - z0 * x2, z0 * x1 - z1 * x0
-        out[e, 0, 2], out[e, 1, 2], out[e, 2, 2] = z0, z1, z2
-        out[e, 0, 3], out[e, 1, 3], out[e, 2, 3] = M[0, 3], M[1, 3], M[2, 3]
-        out[e, 3, 3] = 1.0

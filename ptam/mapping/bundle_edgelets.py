@@ -28,8 +28,8 @@ import numpy as np
 
 from ..camera.model import CameraModel
 from ..edgelet import Edgelets, perp
+from ..edgelet.edgelet_ba_kernels import frames_updated
 from .bundle_edgelet_kernels import (
-    ba_edgelet_frames_updated,
     ba_edgelet_linearise,
     ba_edgelet_residuals,
     ba_edgelet_rows,
@@ -154,7 +154,7 @@ class EdgeletLM:
         if not self.n:
             return None, 0.0
         F_new = np.empty_like(self.F)
-        ba_edgelet_frames_updated(self.F, de, F_new)
+        frames_updated(self.F, de, F_new)
         self._residuals(P_new, F_new, self.live)
         return F_new, float(ba_robust_cost(self.e2, self.bad, self.live, c2))
 

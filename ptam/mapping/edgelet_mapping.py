@@ -18,7 +18,8 @@
    measured in every other keyframe;
 
 and every measurement adds its row to the keyframe's visibility table (§5.2), which the tracker reads.
-Candidates lost to the aperture problem are not retried with another keyframe (§4.3's second target).
+Candidates whose back-projected plane nearly contains t's centre (§4.3's aperture problem) are attempted again,
+steps 3-5, with the keyframe that frees most of them from it (``_aperture_retry``).
 """
 
 from __future__ import annotations
@@ -36,17 +37,20 @@ from ..edgelet import (
     Edgelets,
     LineMeasurements,
     build_visibility_table,
-    canny_edgels,
     extract_candidates,
+    gradient_at,
     line_planes,
+    maximal_edgels,
     measure_in_keyframe,
     perp,
     project_edgelets,
     refine_edgelets,
+    smoothed,
     triangulate_edgelets,
     verify_edgelets,
 )
 from ..geometry import se3
+from ..map.keyframe import KeyFrame
 
 if TYPE_CHECKING:
     from ..camera.model import CameraModel
@@ -166,16 +170,82 @@ def _integrate(m: Map, camera: CameraModel, cfg: Config, k: int, t: int) -> Edge
         return EdgeletJob(remeasured)
     src = measure_in_keyframe(_image(m, k), cand.centre, cand.direction, cand.normal, e)
     src = _take(src, np.flatnonzero(src.ok))
-    hits = _epipolar_hits(m, camera, cfg, k, t, src)
-    hits = _cull(m, camera, k, t, src, hits, e)
-    tgt = _measure_hits(m, t, hits, e)
+    hypotheses, made = _triangulate_with(m, camera, cfg, (k, t, c), src)
+    added = len(made)
+    retry = _aperture_retry(m, camera, cfg, k, t, src) if e.aperture_retry else None
+    if retry is not None:
+        (t2, c2), sel = retry
+        sel = np.setdiff1d(sel, made)  # candidates that became edgelets with t despite the prediction
+        h2, made2 = _triangulate_with(m, camera, cfg, (k, t2, c2), _take(src, sel))
+        hypotheses, added = hypotheses + h2, added + len(made2)
+    return EdgeletJob(remeasured, len(src.a), hypotheses, added)
+
+
+def _triangulate_with(
+    m: Map, camera: CameraModel, cfg: Config, kfs: tuple, src: LineMeasurements
+) -> tuple[int, np.ndarray]:
+    """Steps 3-5 for source candidates ``src`` of keyframe k with target t and check keyframe c (``kfs``):
+    returns the hypotheses measured in t and the candidates that became edgelets."""
+    k, t, c = kfs
+    e = cfg.edgelets
+    sm_t = smoothed(_image(m, t), e)  # Canny's input and the polarity gradient's, for this target
+    hits = _epipolar_hits(m, camera, cfg, (k, t), src, sm_t)
+    hits = _cull(m, camera, k, t, src, hits, sm_t, e)
+    tgt = _measure_hits(m, t, hits, sm_t, e)
     hits, tgt = _keep(hits, tgt.ok), _take(tgt, tgt.ok)
     T = m.kf_T_cw
     tri = triangulate_edgelets(camera, T[k], _take(src, hits.cand), T[t], tgt, e)
     ver = verify_edgelets(camera, T[c], _image(m, c), tri.edgelets, e)
     one = _single_hypotheses(hits.cand, tgt.a, tri.ok & ver.ok, e.hypothesis_merge_px)
-    added = _add(m, camera, cfg, (k, t, c), tri.edgelets.subset(one), (_take(src, hits.cand[one]), tgt, ver), one)
-    return EdgeletJob(remeasured, len(src.a), len(hits.cand), added)
+    made = _add(m, camera, cfg, kfs, tri.edgelets.subset(one), (_take(src, hits.cand[one]), tgt, ver), one)
+    return len(hits.cand), hits.cand[one][made]
+
+
+def _aperture(Xk: np.ndarray, D: np.ndarray, C: np.ndarray, min_deg: float) -> np.ndarray:
+    """(K, N): whether candidate n (a point ``Xk`` on its 3-D line and the line's direction ``D``, in keyframe
+    k's frame) meets §4.3's aperture problem with the camera centre ``C[i]`` (k's frame): the planes through the
+    line and the two centres, which triangulation intersects, meet at less than ``min_deg``
+    (``edgelets.triangulate_min_plane_angle_deg``, the triangulation's own gate)."""
+    n_k = np.cross(D, Xk)  # k's centre is the origin
+    n_j = np.cross(D[None], Xk[None] - C[:, None, :])
+    sin = np.linalg.norm(np.cross(n_k[None], n_j), axis=-1)
+    norm = np.linalg.norm(n_k, axis=-1)[None] * np.linalg.norm(n_j, axis=-1)
+    return sin < np.sin(np.deg2rad(min_deg)) * np.maximum(norm, np.finfo(float).tiny)
+
+
+def _aperture_retry(m: Map, camera: CameraModel, cfg: Config, k: int, t: int, src: LineMeasurements):
+    """§4.3: candidates that the aperture problem keeps from triangulating with target t are "attempted again
+    with a different, more orthogonally translated, keyframe". Each candidate's 3-D line is taken at k's mean
+    scene depth, facing the camera (its depth and slant are what triangulation finds). Of the other keyframes
+    with a baseline (not panorama keyframes), the one that sees the most of the failed ones free of the aperture
+    problem, the nearer of equals; its check keyframe is its nearest one as for the first target. Returns
+    ((target, check), candidate indices) or None."""
+    e = cfg.edgelets
+    T = m.kf_T_cw
+    depth = m.keyframes[k].scene_depth_mean
+    b = src.b / np.linalg.norm(src.b, axis=1, keepdims=True)
+    ends = [src.a + s * 0.5 * e.length_px * b for s in (-1.0, 1.0)]
+    P0, P1, Xk = (np.concatenate([camera.unproject(p), np.ones((len(p), 1))], axis=1) * depth for p in (*ends, src.a))
+    D = (P1 - P0) / np.linalg.norm(P1 - P0, axis=1, keepdims=True)
+    C = se3.transform(T[k], m.camera_centres)  # every keyframe's centre in k's frame
+    min_deg = e.triangulate_min_plane_angle_deg
+    failed = np.flatnonzero(_aperture(Xk, D, C[t : t + 1], min_deg)[0])
+    others = np.ones(m.n_keyframes, bool)
+    others[[k, t]] = False
+    others &= ~KeyFrame.panorama_flags(m.keyframes)
+    if len(failed) == 0 or not others.any():
+        return None
+    js = np.flatnonzero(others)
+    T_jk = T[js] @ se3.inv(T[k])
+    Xj = np.einsum("kij,nj->kni", T_jk[:, :3, :3], Xk[failed]) + T_jk[:, None, :3, 3]
+    seen = camera.valid(Xj.reshape(-1, 3)) & camera.in_image(camera.project(Xj.reshape(-1, 3)), e.candidate_border_px)
+    free = seen.reshape(len(js), len(failed)) & ~_aperture(Xk[failed], D[failed], C[js], min_deg)
+    count = free.sum(axis=1)
+    best = np.lexsort((np.linalg.norm(C[js], axis=1), -count))[0]  # the most freed, then the nearest
+    if count[best] == 0:
+        return None
+    c = check_keyframe(m, k, int(js[best]))
+    return None if c < 0 else ((int(js[best]), c), failed[free[best]])
 
 
 def refine_measured(m: Map, camera: CameraModel, cfg: Config, ids: np.ndarray) -> None:
@@ -203,8 +273,12 @@ def _depth_range(m: Map, cfg: Config, k: int) -> tuple[float, float]:
     return near, min(cfg.mapper.epipolar_far_depth_mult * w, kf.scene_depth_mean + kf.scene_depth_sigma)
 
 
-def _epipolar_hits(m: Map, camera: CameraModel, cfg: Config, k: int, t: int, src: LineMeasurements) -> _Hits:
-    """Runs of maximal edgels along each candidate's epipolar curve in keyframe t (step 3)."""
+def _epipolar_hits(
+    m: Map, camera: CameraModel, cfg: Config, kt: tuple[int, int], src: LineMeasurements, sm_t: np.ndarray
+) -> _Hits:
+    """Runs of maximal edgels along each candidate's epipolar curve in keyframe t (step 3); ``sm_t`` is t's
+    smoothed image."""
+    k, t = kt
     e = cfg.edgelets
     near, far = _depth_range(m, cfg, k)
     z = 1.0 / np.linspace(1.0 / near, 1.0 / far, e.epipolar_vertices) if far > near else np.zeros(0)
@@ -224,7 +298,7 @@ def _epipolar_hits(m: Map, camera: CameraModel, cfg: Config, k: int, t: int, src
     pts = uv[cand, j] + frac[:, None] * seg[cand, j]
     inv_z = 1.0 / z[j] + frac * (1.0 / z[j + 1] - 1.0 / z[j])
     tangent = seg[cand, j] / np.maximum(length[cand, j], np.finfo(float).tiny)[:, None]
-    maximal = canny_edgels(_image(m, t), e)[1]
+    maximal = maximal_edgels(sm_t, e)
     if e.epipolar_dilate_px:
         maximal = cv2.dilate(maximal, np.ones((2 * e.epipolar_dilate_px + 1,) * 2, np.uint8))
     hit = seg_ok[cand, j] & _inside(pts, maximal.shape, e.candidate_border_px)
@@ -267,22 +341,14 @@ def _run_middles(cand: np.ndarray, hit: np.ndarray) -> np.ndarray:
     return (first + last) // 2
 
 
-def _gradient(img: np.ndarray, uv: np.ndarray, cfg) -> np.ndarray:
-    """Sobel gradient (N, 2) of the Canny-smoothed image at the nearest pixels to ``uv``."""
-    s = cfg.canny_blur_sigma
-    sm = cv2.GaussianBlur(img, (0, 0), s) if s > 0 else img
-    ix = np.round(uv).astype(np.int64)
-    gx = cv2.Sobel(sm, cv2.CV_32F, 1, 0, ksize=3)[ix[:, 1], ix[:, 0]]
-    gy = cv2.Sobel(sm, cv2.CV_32F, 0, 1, ksize=3)[ix[:, 1], ix[:, 0]]
-    return np.stack([gx, gy], axis=-1).astype(np.float64)
-
-
-def _cull(m: Map, camera: CameraModel, k: int, t: int, src: LineMeasurements, hits: _Hits, e) -> _Hits:
+def _cull(
+    m: Map, camera: CameraModel, k: int, t: int, src: LineMeasurements, hits: _Hits, sm_t: np.ndarray, e
+) -> _Hits:
     """Step 4's heuristics: the target gradient must have the candidate's polarity and cross the epipolar curve
     at no less than ``epipolar_min_angle_deg``."""
     if len(hits.cand) == 0:
         return hits
-    g = _gradient(_image(m, t), hits.uv, e)
+    g = gradient_at(sm_t, hits.uv)
     gn = np.linalg.norm(g, axis=1)
     g_hat = g / np.maximum(gn, np.finfo(float).tiny)[:, None]
     crossing = np.abs(np.sum(g_hat * hits.tangent, axis=1)) >= np.sin(np.deg2rad(e.epipolar_min_angle_deg))
@@ -299,10 +365,10 @@ def _cull(m: Map, camera: CameraModel, k: int, t: int, src: LineMeasurements, hi
     return _keep(hits, (gn > 0) & crossing & (np.sum(light_t * g, axis=1) > 0) & (Xt[:, 2] > 0))
 
 
-def _measure_hits(m: Map, t: int, hits: _Hits, e) -> LineMeasurements:
+def _measure_hits(m: Map, t: int, hits: _Hits, sm_t: np.ndarray, e) -> LineMeasurements:
     """§4.2 measurements in t at the matches, along the edge their gradient shows (perp(b) dark → light)."""
     img = _image(m, t)
-    n_hat = _gradient(img, hits.uv, e) if len(hits.cand) else np.zeros((0, 2))
+    n_hat = gradient_at(sm_t, hits.uv) if len(hits.cand) else np.zeros((0, 2))
     n_hat = n_hat / np.maximum(np.linalg.norm(n_hat, axis=1), np.finfo(float).tiny)[:, None]
     direction = np.stack([n_hat[:, 1], -n_hat[:, 0]], axis=1)  # perp(direction) = n_hat
     return measure_in_keyframe(img, hits.uv, direction, n_hat, e)
@@ -323,12 +389,14 @@ def _single_hypotheses(cand: np.ndarray, tgt_a: np.ndarray, ok: np.ndarray, merg
     return first[(first >= 0) & ~rival]
 
 
-def _add(m: Map, camera: CameraModel, cfg: Config, kfs: tuple, ed: Edgelets, meas: tuple, one: np.ndarray) -> int:
+def _add(
+    m: Map, camera: CameraModel, cfg: Config, kfs: tuple, ed: Edgelets, meas: tuple, one: np.ndarray
+) -> np.ndarray:
     """Refine the new edgelets on their source, target and check measurements (poses fixed), add them with those
-    measurements, and measure them in every other keyframe (step 5)."""
+    measurements, and measure them in every other keyframe (step 5); returns which of them were added."""
     n = len(one)
     if n == 0:
-        return 0
+        return np.zeros(0, bool)
     src, tgt, ver = meas
     lines = [(src.a, src.b), (tgt.a[one], tgt.b[one]), (ver.measurement.a[one], ver.measurement.b[one])]
     kf = np.repeat(np.asarray(kfs), n)
@@ -339,7 +407,19 @@ def _add(m: Map, camera: CameraModel, cfg: Config, kfs: tuple, ed: Edgelets, mea
     ids = m.add_edgelets(ed.centre[good], ed.direction[good], ed.normal[good], kfs[0])
     for i, k in enumerate(kfs):
         _record(m, cfg, k, ids, lines[i][0][good], lines[i][1][good])
-    for k in range(m.n_keyframes):
-        if k not in kfs:
-            measure_edgelets_in(m, camera, cfg, k, ids)
-    return len(ids)
+    seen = _in_view(m, camera, ids, cfg.edgelets.candidate_border_px)
+    seen[list(kfs)] = False
+    for k in np.flatnonzero(seen.any(axis=1)).tolist():  # only the keyframes that see some of them
+        measure_edgelets_in(m, camera, cfg, k, ids[seen[k]])
+    return good
+
+
+def _in_view(m: Map, camera: CameraModel, ids: np.ndarray, border: float) -> np.ndarray:
+    """(K, N): whether edgelet ``ids[n]``'s centre projects inside keyframe k's image, by ``border`` px (the test
+    ``measure_edgelets_in`` starts with), for every keyframe at once."""
+    T = m.kf_T_cw
+    Xc = np.einsum("kij,nj->kni", T[:, :3, :3], m.edgelets.view("centre")[ids]) + T[:, None, :3, 3]
+    flat = Xc.reshape(-1, 3)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inside = camera.valid(flat) & camera.in_image(camera.project(flat), border)
+    return inside.reshape(len(T), len(ids))

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ptam.edgelet import EDGELET_DOF, Edgelets
+from ptam.geometry import se3
+
 
 def edgelet_ba_terms_ref(camera, poses, frames, mkf, medg, line_a, line_n, along):
     T = poses[mkf]  # (M, 4, 4)
@@ -26,3 +29,11 @@ def edgelet_ba_terms_ref(camera, poses, frames, mkf, medg, line_a, line_n, along
     z = ~front
     err[z], Jp[z], Je[z] = 0.0, 0.0, 0.0
     return err, Jp, Je, valid
+
+
+def edgelets_updated_ref(ed, mu):
+    """E_WE ← E_WE · exp(μ) for μ (N, 4) = (t_x, t_y, ω_x, ω_y) in each edgelet's frame, re-orthonormalised
+    (``Edgelets.updated``): numpy's batched SE(3) exponential and Gram–Schmidt."""
+    mu6 = np.zeros((len(ed), 6))
+    mu6[:, EDGELET_DOF] = mu
+    return Edgelets.from_frames(ed.frames() @ se3.exp(mu6))
