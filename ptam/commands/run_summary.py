@@ -9,7 +9,7 @@ from ..vocabulary import GroupKind
 
 
 def print_summary(system, mode: str, dropped: int | None, viewer=None, checkpoints: int = 0) -> None:
-    """Frames, tracked %, lost events, relocalisations, keyframes, points; median / p95 tracking ms, bundle
+    """Frames, tracked %, lost events, relocalisations, keyframes, points, edgelets; median / p95 tracking ms, bundle
     adjustment runs, frames dropped in realtime mode, frames the viewer had no time to log and map checkpoints
     written during the run."""
     s = system.stats
@@ -17,12 +17,14 @@ def print_summary(system, mode: str, dropped: int | None, viewer=None, checkpoin
     kfs = snap.n_keyframes if snap is not None else 0
     panoramas = [g for g in keyframe_groups(snap) if g.kind == GroupKind.PANORAMA] if kfs else []
     pts = snap.n_points if snap is not None else 0
+    edgelets = len(snap.good_edgelet_indices) if snap is not None else 0
     ms = np.asarray(s.track_ms) if s.track_ms else np.zeros(1)
     ba = system.mapper.stats
     tracked = 100.0 * s.tracked / max(s.frames, 1)
     print(
         f"frames {s.frames}  tracked {s.tracked} ({tracked:.1f}%)  lost events {s.lost_events}  "
         f"relocalisations {s.relocalisations}  keyframes {kfs}  points {pts}"
+        + (f"  edgelets {edgelets}" if system.cfg.edgelets.enabled else "")
         + (
             f"  (panorama: {sum(len(g.keyframes) - 1 for g in panoramas)} keyframes in {len(panoramas)} groups, "
             f"{int(np.count_nonzero(snap.ray & ~snap.bad))} rays)"

@@ -293,6 +293,7 @@ def _epipolar_hits(
     seg = np.diff(uv, axis=1)
     length = np.linalg.norm(seg, axis=2)
     seg_ok = front[:, 1:] & front[:, :-1] & np.isfinite(length)
+    seg = np.where(seg_ok[..., None], seg, 0.0)  # a piece through the lens's invalid region is no piece
     length = np.where(seg_ok, np.minimum(length, np.hypot(*_image(m, t).shape)), 0.0)
     cand, j, frac = _curve_samples(length, e.epipolar_step_px)
     pts = uv[cand, j] + frac[:, None] * seg[cand, j]
