@@ -30,7 +30,7 @@ from numba import njit
 
 from ..camera.camproj_kernels import project, project_jac
 from ..edgelet.edgelet_ba_kernels import measurement_rows, sample_in_camera
-from .bundle_kernels import eliminate
+from .bundle_kernels import clear_residual, eliminate
 
 
 @njit(nogil=True, cache=True, inline="always")
@@ -66,10 +66,7 @@ def ba_edgelet_rows(cam, poses, frames, meas, offset_px, use, along, err, jp, je
         z = _along(cam, T, E, offset_px, J)
         along[k, 0] = -z
         along[k, 1] = z
-        err[k, 0] = 0.0
-        err[k, 1] = 0.0
-        e2[k] = 0.0
-        bad[k] = False
+        clear_residual(k, err, e2, bad)
         if not use[k]:
             continue
         bad[k] = sample_in_camera(T, E, -z)[2] <= 0.0 or sample_in_camera(T, E, z)[2] <= 0.0
@@ -84,10 +81,7 @@ def ba_edgelet_residuals(cam, poses, frames, mcam, medg, line_a, line_n, along, 
     """Eq. 7 for the measurements in ``use``: ε_n = m̂·(s_n − a) (M, 2) px, e2 = ε₁² + ε₂², bad = a sample point
     behind the camera (as ``edgelet_ba_terms``, without the Jacobians)."""
     for k in range(mcam.shape[0]):
-        err[k, 0] = 0.0
-        err[k, 1] = 0.0
-        e2[k] = 0.0
-        bad[k] = False
+        clear_residual(k, err, e2, bad)
         if not use[k]:
             continue
         T = poses[mcam[k]]

@@ -49,14 +49,20 @@ def _to_camera(T, points, p):
     )
 
 
+@njit(nogil=True, cache=True, inline="always")
+def clear_residual(k, err, e2, bad):
+    """Measurement k's error, squared error and bad flag before it is (re)computed, or when it is not in use."""
+    err[k, 0] = 0.0
+    err[k, 1] = 0.0
+    e2[k] = 0.0
+    bad[k] = False
+
+
 @njit(nogil=True, cache=True)
 def ba_residuals(cam, poses, points, mcam, mpt, uv, inv_sigma, use, err, e2, bad):
     """Normalised errors err (K, 2), |err|² e2 (K,), bad (K,) = behind the camera, for measurements in ``use``."""
     for k in range(mcam.shape[0]):
-        err[k, 0] = 0.0
-        err[k, 1] = 0.0
-        e2[k] = 0.0
-        bad[k] = False
+        clear_residual(k, err, e2, bad)
         if not use[k]:
             continue
         T = poses[mcam[k]]
