@@ -19,7 +19,7 @@
 
 and every measurement adds its row to the keyframe's visibility table (§5.2), which the tracker reads.
 Candidates whose back-projected plane nearly contains t's centre (§4.3's aperture problem) are attempted again,
-steps 3-5, with the keyframe that frees most of them from it (``_aperture_retry``).
+steps 3-5, with the keyframe that frees most of them from it (``edgelet_aperture``).
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ from ..edgelet import (
     verify_edgelets,
 )
 from ..geometry import se3
-from ..map.keyframe import KeyFrame
+from .edgelet_aperture import aperture_retry
 
 if TYPE_CHECKING:
     from ..camera.model import CameraModel
@@ -172,9 +172,9 @@ def _integrate(m: Map, camera: CameraModel, cfg: Config, k: int, t: int) -> Edge
     src = _take(src, np.flatnonzero(src.ok))
     hypotheses, made = _triangulate_with(m, camera, cfg, (k, t, c), src)
     added = len(made)
-    retry = _aperture_retry(m, camera, cfg, k, t, src) if e.aperture_retry else None
-    if retry is not None:
-        (t2, c2), sel = retry
+    t2, sel = aperture_retry(m, camera, e, k, t, src) if e.aperture_retry else (-1, made[:0])
+    c2 = check_keyframe(m, k, t2) if t2 >= 0 else -1
+    if c2 >= 0:
         sel = np.setdiff1d(sel, made)  # candidates that became edgelets with t despite the prediction
         h2, made2 = _triangulate_with(m, camera, cfg, (k, t2, c2), _take(src, sel))
         hypotheses, added = hypotheses + h2, added + len(made2)
@@ -199,53 +199,6 @@ def _triangulate_with(
     one = _single_hypotheses(hits.cand, tgt.a, tri.ok & ver.ok, e.hypothesis_merge_px)
     made = _add(m, camera, cfg, kfs, tri.edgelets.subset(one), (_take(src, hits.cand[one]), tgt, ver), one)
     return len(hits.cand), hits.cand[one][made]
-
-
-def _aperture(Xk: np.ndarray, D: np.ndarray, C: np.ndarray, min_deg: float) -> np.ndarray:
-    """(K, N): whether candidate n (a point ``Xk`` on its 3-D line and the line's direction ``D``, in keyframe
-    k's frame) meets §4.3's aperture problem with the camera centre ``C[i]`` (k's frame): the planes through the
-    line and the two centres, which triangulation intersects, meet at less than ``min_deg``
-    (``edgelets.triangulate_min_plane_angle_deg``, the triangulation's own gate)."""
-    n_k = np.cross(D, Xk)  # k's centre is the origin
-    n_j = np.cross(D[None], Xk[None] - C[:, None, :])
-    sin = np.linalg.norm(np.cross(n_k[None], n_j), axis=-1)
-    norm = np.linalg.norm(n_k, axis=-1)[None] * np.linalg.norm(n_j, axis=-1)
-    return sin < np.sin(np.deg2rad(min_deg)) * np.maximum(norm, np.finfo(float).tiny)
-
-
-def _aperture_retry(m: Map, camera: CameraModel, cfg: Config, k: int, t: int, src: LineMeasurements):
-    """§4.3: candidates that the aperture problem keeps from triangulating with target t are "attempted again
-    with a different, more orthogonally translated, keyframe". Each candidate's 3-D line is taken at k's mean
-    scene depth, facing the camera (its depth and slant are what triangulation finds). Of the other keyframes
-    with a baseline (not panorama keyframes), the one that sees the most of the failed ones free of the aperture
-    problem, the nearer of equals; its check keyframe is its nearest one as for the first target. Returns
-    ((target, check), candidate indices) or None."""
-    e = cfg.edgelets
-    T = m.kf_T_cw
-    depth = m.keyframes[k].scene_depth_mean
-    b = src.b / np.linalg.norm(src.b, axis=1, keepdims=True)
-    ends = [src.a + s * 0.5 * e.length_px * b for s in (-1.0, 1.0)]
-    P0, P1, Xk = (np.concatenate([camera.unproject(p), np.ones((len(p), 1))], axis=1) * depth for p in (*ends, src.a))
-    D = (P1 - P0) / np.linalg.norm(P1 - P0, axis=1, keepdims=True)
-    C = se3.transform(T[k], m.camera_centres)  # every keyframe's centre in k's frame
-    min_deg = e.triangulate_min_plane_angle_deg
-    failed = np.flatnonzero(_aperture(Xk, D, C[t : t + 1], min_deg)[0])
-    others = np.ones(m.n_keyframes, bool)
-    others[[k, t]] = False
-    others &= ~KeyFrame.panorama_flags(m.keyframes)
-    if len(failed) == 0 or not others.any():
-        return None
-    js = np.flatnonzero(others)
-    T_jk = T[js] @ se3.inv(T[k])
-    Xj = np.einsum("kij,nj->kni", T_jk[:, :3, :3], Xk[failed]) + T_jk[:, None, :3, 3]
-    seen = camera.valid(Xj.reshape(-1, 3)) & camera.in_image(camera.project(Xj.reshape(-1, 3)), e.candidate_border_px)
-    free = seen.reshape(len(js), len(failed)) & ~_aperture(Xk[failed], D[failed], C[js], min_deg)
-    count = free.sum(axis=1)
-    best = np.lexsort((np.linalg.norm(C[js], axis=1), -count))[0]  # the most freed, then the nearest
-    if count[best] == 0:
-        return None
-    c = check_keyframe(m, k, int(js[best]))
-    return None if c < 0 else ((int(js[best]), c), failed[free[best]])
 
 
 def refine_measured(m: Map, camera: CameraModel, cfg: Config, ids: np.ndarray) -> None:
