@@ -57,7 +57,9 @@ def test_new_keyframes_do_not_vote():
 def test_edgelets_no_longer_move_the_scale_of_a_growing_map():
     """desk_bricks, sync: with edgelets (Agility §4.4) every global BA moved the map's free scale by up to 0.6 %,
     and the tracked poses carried it (4.6 mm ATE against 0.4 mm with points alone, measured); held, edgelets are
-    as accurate as points alone."""
+    as accurate as points alone. The wander shows on the map of one target keyframe per edgelet candidate
+    (``edgelets.aperture_retry=false``); the default map, whose second targets add desk_bricks' horizontal joints
+    seen over a second baseline, damps it (0.8 mm with a free scale, measured) and is held as well."""
     import dataclasses
 
     from ptam.bench.accuracy import criteria
@@ -68,18 +70,20 @@ def test_edgelets_no_longer_move_the_scale_of_a_growing_map():
 
     d = sequence("desk_bricks")
 
-    def ate_mm(edgelets: bool, hold: bool) -> float:
+    def ate_mm(edgelets: bool, hold: bool, retry: bool = True) -> float:
         cfg = dataclasses.replace(
             CFG,
-            edgelets=dataclasses.replace(CFG.edgelets, enabled=edgelets),
+            edgelets=dataclasses.replace(CFG.edgelets, enabled=edgelets, aperture_retry=retry),
             bundle=dataclasses.replace(CFG.bundle, hold_scale=hold),
         )
         run = run_dataset(d, cfg, mode=RunMode.SYNC)
         return 1e3 * score_trajectory(d / "groundtruth.txt", run.trajectory, criteria=criteria(cfg)).ate_rmse_m
 
-    points, edgelets, free = ate_mm(False, True), ate_mm(True, True), ate_mm(True, False)
+    points, edgelets = ate_mm(False, True), ate_mm(True, True)
+    one_target, free = ate_mm(True, True, retry=False), ate_mm(True, False, retry=False)
     print(
-        f"desk_bricks ATE: points {points:.2f} mm, edgelets {edgelets:.2f} mm, edgelets with a free scale {free:.2f} mm"
+        f"desk_bricks ATE: points {points:.2f} mm, edgelets {edgelets:.2f} mm; one target keyframe: held "
+        f"{one_target:.2f} mm, free scale {free:.2f} mm"
     )
-    assert edgelets <= 1.25 * points + 0.05
-    assert free >= 3.0 * edgelets
+    assert edgelets <= 1.25 * points + 0.05 and one_target <= 1.25 * points + 0.05
+    assert free >= 3.0 * one_target
