@@ -12,6 +12,7 @@ from ptam.map.snapshot import camera_centres
 from ptam.mapping import bundle_edgelet_kernels as EK
 from ptam.mapping import bundle_kernels as K
 from ptam.mapping.bundle import Bundle
+from ptam.mapping.bundle_edgelets import EdgeletLM
 from ptam.mapping.bundle_inputs import EdgeletBundleInput
 from ptam.mapping.bundle_structure import build_structure
 from tests.reference import bundle as R
@@ -241,3 +242,39 @@ def test_frames_update_kernel_matches_reference(problem):
     assert close(eb.init.updated(de).frames(), out, 1e-15)
     RtR = np.einsum("nji,njk->nik", out[:, :3, :3], out[:, :3, :3])
     assert close(RtR, np.broadcast_to(np.eye(3), (len(de), 3, 3)), 1e-12)
+
+
+def test_convergence_counts_an_edgelet_turn_as_its_sample_points_motion(problem):
+    """The convergence test's squared update (PTAM: of every parameter, metres for points) counts an edgelet's
+    turn as the distance it moves the edgelet's sample points (eq. 6), not in radians: a 1e-3 rad turn moves
+    sample points 1 cm out by 10 µm, which no measurement can see."""
+    prob, eb = problem
+    fixed = np.zeros(len(prob.poses_true), bool)
+    fixed[:2] = True
+    inp = EdgeletBundleInput(eb.truth, eb.obs, CFG.edgelets).checked(len(prob.poses_true))
+    st = build_structure(
+        prob.meas_kf,
+        prob.meas_pt,
+        fixed,
+        np.ones(len(prob.points_true), bool),
+        (inp.obs.kf, inp.obs.edgelet, inp.adjust_mask),
+    )
+    lm = EdgeletLM(prob.camera, st, inp)
+    P = prob.poses_true[st.cams]
+    lm.residuals(P)
+    n = len(st.edgelets.ids)
+    turn = np.zeros((n, 4))
+    turn[:, 2] = 1e-3
+    # Where the turn moves the sample points: the world positions of ±z on the edgelet's axis, before and after.
+    F0 = inp.edgelets.subset(st.edgelets.ids).frames()
+    F1 = np.empty_like(F0)
+    frames_updated(F0, turn, F1)
+    z = np.abs(lm.along[:, 1])
+    e = st.edgelets.medg
+    moved = np.linalg.norm((F1[e, :3, 2] - F0[e, :3, 2]) * z[:, None], axis=1)
+    mean_moved = np.bincount(e, weights=moved, minlength=n) / np.bincount(e, minlength=n)
+    assert np.allclose(lm.squared_update(turn), np.sum(mean_moved**2), rtol=1e-6)
+    assert lm.squared_update(turn) < 0.1 * n * 1e-6  # in radians, n·1e-6: here the sample points sit 2-12 cm out
+    shift = np.zeros((n, 4))
+    shift[:, 0] = 1e-3
+    assert np.isclose(lm.squared_update(shift), n * 1e-6)  # translations count in metres, as a point's
