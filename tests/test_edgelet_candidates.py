@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from ptam.edgelet.edgel_linker_kernels import link_edgels, split_chains
-from ptam.edgelet.edgelet_candidates import canny_edgels, extract_candidates, segment_edgels
+from ptam.edgelet.edgelet_candidates import canny_edges, extract_candidates, maximal_edgels, segment_edgels, smoothed
 from ptam.errors import InputError
 from tests.reference.edgel_linker import link_edgels_ref, split_chains_ref
 from tests.reference.edgelet_scenes import polygon_edges, polygon_image
@@ -47,7 +47,7 @@ def test_linker_kernels_match_references(shapes, cfg):
     rng = np.random.default_rng(0)
     noisy = np.clip(img + rng.normal(0, 12, img.shape), 0, 255).astype(np.uint8)  # ragged edges, junctions
     for image in (img, noisy):
-        edges = canny_edgels(image, ecfg)[0]
+        edges = canny_edges(smoothed(image, ecfg), ecfg)
         pts, starts = link_edgels(edges)
         pts_r, starts_r = link_edgels_ref(edges)
         assert np.array_equal(pts, pts_r) and np.array_equal(starts, starts_r)
@@ -109,7 +109,8 @@ def test_candidates_near_existing_edgelets_are_rejected(shapes, cfg):
 def test_maximal_edgels_include_the_linked_ones(shapes, cfg):
     img = shapes[0]
     faint = cv2.addWeighted(img, 0.2, np.full_like(img, BACKGROUND), 0.8, 0)  # contrast below the high threshold
-    edges, maximal = canny_edgels(faint, cfg.edgelets)
+    sm = smoothed(faint, cfg.edgelets)
+    edges, maximal = canny_edges(sm, cfg.edgelets), maximal_edgels(sm, cfg.edgelets)
     assert np.all(maximal[edges > 0] > 0) and np.count_nonzero(maximal) > np.count_nonzero(edges)
     with pytest.raises(InputError):
         extract_candidates(img.astype(np.float32), cfg.edgelets)

@@ -5,8 +5,9 @@ breaks chains at high curvature; chains cut into edgelet-length segments (``edge
 straight-enough segment gets its polarity from the image gradient at its centre (the direction is signed so
 that ``perp(direction)`` points from dark to light), is refined by a direct measurement (§4.2, the Canny
 edgels being displaced by the smoothing), and is rejected when it lies within ``candidate_min_distance_px``
-of an edgelet already in the map (their image centres are given). ``canny_edgels`` also returns the image of
-all maximal edgels, suppressed by the hysteresis or not, which the epipolar search of §4.3 matches against.
+of an edgelet already in the map (their image centres are given). ``maximal_edgels`` gives the image of all
+maximal edgels, suppressed by the hysteresis or not, which the epipolar search of §4.3 matches against; both
+take the image ``smoothed`` once.
 """
 
 from __future__ import annotations
@@ -50,20 +51,14 @@ def smoothed(image: np.ndarray, cfg: EdgeletConfig) -> np.ndarray:
     return cv2.GaussianBlur(image, (0, 0), s) if s > 0 else image
 
 
-def _canny(smoothed: np.ndarray, cfg: EdgeletConfig) -> np.ndarray:
-    """Canny's edgels linked by hysteresis (the candidates' source, §4.3)."""
-    return cv2.Canny(smoothed, cfg.canny_low, cfg.canny_high, L2gradient=_SOBEL_L2)
+def canny_edges(smoothed_image: np.ndarray, cfg: EdgeletConfig) -> np.ndarray:
+    """Canny's edgels linked by hysteresis (the candidates' source, §4.3) of a ``smoothed`` image."""
+    return cv2.Canny(smoothed_image, cfg.canny_low, cfg.canny_high, L2gradient=_SOBEL_L2)
 
 
 def maximal_edgels(smoothed_image: np.ndarray, cfg: EdgeletConfig) -> np.ndarray:
     """Every non-maximum-suppressed edgel above Canny's low threshold (no hysteresis) of a ``smoothed`` image."""
     return cv2.Canny(smoothed_image, cfg.canny_low, cfg.canny_low, L2gradient=_SOBEL_L2)
-
-
-def canny_edgels(image: np.ndarray, cfg: EdgeletConfig) -> tuple[np.ndarray, np.ndarray]:
-    """(edgels, maximal): Canny's linked edgels and every non-maximum-suppressed edgel above the low threshold."""
-    img = smoothed(image, cfg)
-    return _canny(img, cfg), maximal_edgels(img, cfg)
 
 
 def segment_edgels(edges: np.ndarray, cfg: EdgeletConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -92,7 +87,7 @@ def extract_candidates(
 ) -> EdgeletCandidates:
     """Candidate edgelets of a full-size keyframe ``image`` away from ``existing_centres`` (K, 2) (§4.3)."""
     sm = smoothed(image, cfg)
-    centre, direction, deviation = segment_edgels(_canny(sm, cfg), cfg)
+    centre, direction, deviation = segment_edgels(canny_edges(sm, cfg), cfg)
     b = cfg.candidate_border_px
     H, W = image.shape
     keep = (deviation <= cfg.candidate_max_deviation_px) & (centre[:, 0] >= b) & (centre[:, 1] >= b)
