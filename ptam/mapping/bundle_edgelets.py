@@ -67,6 +67,7 @@ class EdgeletLM:
         self.W = np.zeros((self.n, 6, 4))
         self.Vinv = np.zeros((ne, 4, 4))
         self.err = np.zeros((self.n, 2))
+        self.z_mean = np.zeros(ne)
         self.jp = np.zeros((self.n, 2, 6))
         self.je = np.zeros((self.n, 2, 4))
 
@@ -97,6 +98,10 @@ class EdgeletLM:
                 self.e2,
                 self.bad,
             )
+            # Each edgelet's mean sample offset |z| at this linearisation, for ``squared_update``.
+            n_e = len(es.ids)
+            count = np.maximum(np.bincount(es.medg, minlength=n_e), 1)
+            self.z_mean = np.bincount(es.medg, weights=np.abs(self.along[:, 1]), minlength=n_e) / count
 
     def linearise(self, c2: float, cam_row_blocks: tuple[np.ndarray, np.ndarray]) -> float:
         """Add the edgelets' Tukey-weighted terms (at the state of the last ``residuals``) to the camera blocks
@@ -150,10 +155,7 @@ class EdgeletLM:
         the test would wait on edgelet turns that no measurement can see."""
         if not self.n:
             return 0.0
-        n_e = len(de)
-        count = np.bincount(self.es.medg, minlength=n_e)
-        z = np.bincount(self.es.medg, weights=np.abs(self.along[:, 1]), minlength=n_e) / np.maximum(count, 1)
-        return float(np.sum(de[:, :2] ** 2) + np.sum((de[:, 2:] * z[:, None]) ** 2))
+        return float(np.sum(de[:, :2] ** 2) + np.sum((de[:, 2:] * self.z_mean[:, None]) ** 2))
 
     def backsub(self, dcam: np.ndarray) -> np.ndarray:
         """The edgelet updates (E, 4) for camera updates ``dcam``."""
