@@ -20,7 +20,8 @@ from ..config.edgelet_section import EdgeletConfig
 from ..errors import InputError
 from ..geometry import se3
 from .edgelet import Edgelets, perp
-from .edgelet_ba_kernels import edgelet_ba_terms, edgelet_normal_equations
+from .edgelet_ba_kernels import edgelet_ba_terms
+from .edgelet_refine_kernels import refine_frames
 
 
 @dataclass(frozen=True)
@@ -104,23 +105,16 @@ def refine_edgelets(
     blocks of §4.4's bundle adjustment), e.g. over a new edgelet's source, target and check measurements.
     Edgelets with fewer than two valid measurements are left where they are."""
     along = sample_along(camera, poses, edgelets, obs, cfg)
-    cam = camera.kernel_params()
-    poses = np.ascontiguousarray(poses, dtype=np.float64)
-    args = (
+    frames = np.ascontiguousarray(edgelets.frames())
+    refine_frames(
+        camera.kernel_params(),
+        np.ascontiguousarray(poses, dtype=np.float64),
+        frames,
         np.ascontiguousarray(obs.kf, dtype=np.int64),
         np.ascontiguousarray(obs.edgelet, dtype=np.int64),
         np.ascontiguousarray(obs.a, dtype=np.float64),
         np.ascontiguousarray(_line_normals(obs)),
         np.ascontiguousarray(along, dtype=np.float64),
+        int(iterations),
     )
-    for _ in range(iterations):
-        H, g, count = edgelet_normal_equations(
-            cam, poses, np.ascontiguousarray(edgelets.frames()), *args, len(edgelets)
-        )
-        # H is symmetric positive semi-definite: its condition number is the ratio of its extreme eigenvalues.
-        lam = np.abs(np.linalg.eigvalsh(H))
-        solvable = (count >= 2) & (lam.min(axis=1) * (1.0 / np.finfo(np.float64).eps) > lam.max(axis=1))
-        mu = np.zeros((len(edgelets), 4))
-        mu[solvable] = -np.linalg.solve(H[solvable], g[solvable][..., None])[..., 0]
-        edgelets = edgelets.updated(mu)
-    return edgelets
+    return Edgelets(frames[:, :3, 3], frames[:, :3, 2], frames[:, :3, 0])

@@ -37,3 +37,23 @@ def edgelets_updated_ref(ed, mu):
     mu6 = np.zeros((len(ed), 6))
     mu6[:, EDGELET_DOF] = mu
     return Edgelets.from_frames(ed.frames() @ se3.exp(mu6))
+
+
+def refine_edgelets_ref(camera, poses, ed, obs, along, iterations):
+    """Structure-only Gauss–Newton (``edgelet_refine_kernels.refine_frames``) in numpy: the normal equations from
+    the reference terms, numpy's batched eigenvalues for the condition test and its batched solve."""
+    n = len(ed)
+    m_hat = np.stack([-obs.b[:, 1], obs.b[:, 0]], axis=1) / np.linalg.norm(obs.b, axis=1, keepdims=True)
+    for _ in range(iterations):
+        err, _, Je, valid = edgelet_ba_terms_ref(camera, poses, ed.frames(), obs.kf, obs.edgelet, obs.a, m_hat, along)
+        H = np.zeros((n, 4, 4))
+        g = np.zeros((n, 4))
+        np.add.at(H, obs.edgelet[valid], np.einsum("msi,msj->mij", Je, Je)[valid])
+        np.add.at(g, obs.edgelet[valid], np.einsum("msi,ms->mi", Je, err)[valid])
+        count = np.bincount(obs.edgelet[valid], minlength=n)
+        lam = np.abs(np.linalg.eigvalsh(H))
+        ok = (count >= 2) & (lam.min(axis=1) * (1.0 / np.finfo(np.float64).eps) > lam.max(axis=1))
+        mu = np.zeros((n, 4))
+        mu[ok] = -np.linalg.solve(H[ok], g[ok][..., None])[..., 0]
+        ed = edgelets_updated_ref(ed, mu)
+    return ed
