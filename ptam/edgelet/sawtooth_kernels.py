@@ -139,9 +139,9 @@ def visibility_table(img, centres, normals, blurs, max_search, centre_tol, tmin_
         for b in range(nb):
             L = int(blurs[b])
             bh = L // 2
-            for j in range(bh, 2 * ext + 1 - bh):
-                blurred[j] = (csum[j + bh + 1] - csum[j - bh]) / (2 * bh + 1)
             h = ramp_weights(min(max_len, max(min_len, float(L))), w)
+            for j in range(ext - R - 1 - h, ext + R + 2 + h):  # the samples the correlation reads
+                blurred[j] = (csum[j + bh + 1] - csum[j - bh]) / (2 * bh + 1)
             correlate(blurred, ext, h, w, -R - 1, R + 1, resp, p0, p1)
             centre_k = -1
             for k in range(1, 2 * R + 2):
