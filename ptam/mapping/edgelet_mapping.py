@@ -3,7 +3,8 @@
 ``integrate_keyframe`` is the mapper's one edgelet job per (non-panorama) keyframe k:
 
 1. the map's edgelets are projected into k and measured there (§4.2; §4.4: "more measurements are attempted in
-   ... all keyframes subsequently added");
+   ... all keyframes subsequently added"); the bundle adjustment that follows the job moves them on the new
+   measurements (§4.4), as it moves points;
 2. candidates are extracted in k away from the edgelets it measures (``extract_candidates``);
 3. each candidate's viewing ray, cut to k's depth prior as PTAM cuts a point's (``epipolar.py``: z in
    [max(w, mean − σ), min(40·w, mean + σ)], w the initial baseline), is projected into the target keyframe t
@@ -156,9 +157,7 @@ def integrate_keyframe(m: Map, camera: CameraModel, cfg: Config, k: int, t: int)
 
 
 def _integrate(m: Map, camera: CameraModel, cfg: Config, k: int, t: int) -> EdgeletJob:
-    old = _unmeasured(m, k)
-    remeasured = measure_edgelets_in(m, camera, cfg, k, old)
-    refine_measured(m, camera, cfg, old)
+    remeasured = measure_edgelets_in(m, camera, cfg, k, _unmeasured(m, k))
     c = check_keyframe(m, k, t)
     if c < 0:
         return EdgeletJob(remeasured)
@@ -199,24 +198,6 @@ def _triangulate_with(
     one = _single_hypotheses(hits.cand, tgt.a, tri.ok & ver.ok, e.hypothesis_merge_px)
     made = _add(m, camera, cfg, kfs, tri.edgelets.subset(one), (_take(src, hits.cand[one]), tgt, ver), one)
     return len(hits.cand), hits.cand[one][made]
-
-
-def refine_measured(m: Map, camera: CameraModel, cfg: Config, ids: np.ndarray) -> None:
-    """Re-estimate edgelets ``ids`` from all their keyframe measurements with the poses fixed (the edgelet
-    blocks of §4.4's bundle adjustment), so that an edgelet gains from every keyframe that measures it."""
-    st = m.edgelets
-    sel = np.zeros(st.n_total, bool)
-    sel[ids] = True
-    use = sel[st.view("meas_edgelet")]
-    if not use.any():
-        return
-    ids = np.unique(st.view("meas_edgelet")[use])
-    local = np.searchsorted(ids, st.view("meas_edgelet")[use])
-    obs = EdgeletObservations(st.view("meas_kf")[use], local, st.view("meas_a")[use], st.view("meas_b")[use])
-    ed = Edgelets(st.view("centre")[ids], st.view("direction")[ids], st.view("normal")[ids])
-    ed = refine_edgelets(camera, m.kf_T_cw, ed, obs, cfg.edgelets, cfg.edgelets.refine_iterations)
-    ok = np.all(np.isfinite(ed.centre), axis=1) & np.all(np.isfinite(ed.direction), axis=1)
-    m.set_edgelets(ids[ok], ed.centre[ok], ed.direction[ok], ed.normal[ok])
 
 
 def _depth_range(m: Map, cfg: Config, k: int) -> tuple[float, float]:
