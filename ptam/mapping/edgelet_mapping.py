@@ -52,6 +52,7 @@ from ..edgelet import (
 )
 from ..geometry import se3
 from .edgelet_aperture import aperture_retry
+from .edgelet_epipolar_kernels import curve_hits
 
 if TYPE_CHECKING:
     from ..camera.model import CameraModel
@@ -227,53 +228,14 @@ def _epipolar_hits(
     seg = np.diff(uv, axis=1)
     length = np.linalg.norm(seg, axis=2)
     seg_ok = front[:, 1:] & front[:, :-1] & np.isfinite(length)
-    seg = np.where(seg_ok[..., None], seg, 0.0)  # a piece through the lens's invalid region is no piece
-    length = np.where(seg_ok, np.minimum(length, np.hypot(*_image(m, t).shape)), 0.0)
-    cand, j, frac = _curve_samples(length, e.epipolar_step_px)
-    pts = uv[cand, j] + frac[:, None] * seg[cand, j]
-    inv_z = 1.0 / z[j] + frac * (1.0 / z[j + 1] - 1.0 / z[j])
-    tangent = seg[cand, j] / np.maximum(length[cand, j], np.finfo(float).tiny)[:, None]
+    length = np.where(seg_ok, np.minimum(length, np.hypot(*_image(m, t).shape)), 0.0)  # invalid: no piece
     maximal = maximal_edgels(sm_t, e)
     if e.epipolar_dilate_px:
         maximal = cv2.dilate(maximal, np.ones((2 * e.epipolar_dilate_px + 1,) * 2, np.uint8))
-    hit = seg_ok[cand, j] & _inside(pts, maximal.shape, e.candidate_border_px)
-    ix = np.round(np.where(hit[:, None], pts, 0.0)).astype(np.int64)
-    hit &= maximal[ix[:, 1], ix[:, 0]] > 0
-    mid = _run_middles(cand, hit)
-    return _Hits(cand[mid], pts[mid], 1.0 / inv_z[mid], tangent[mid])
-
-
-def _curve_samples(length: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Points every ``step`` along each row's polyline of segment lengths (n, s): row, segment, fraction."""
-    n, s = length.shape
-    cum = np.cumsum(length, axis=1)
-    total = cum[:, -1]
-    count = np.floor(total / step).astype(np.int64) + 1
-    cand = np.repeat(np.arange(n), count)
-    start = np.concatenate([[0], np.cumsum(count)[:-1]])
-    arc = (np.arange(len(cand)) - start[cand]) * step
-    # One searchsorted over all rows: row i's cumulative lengths are shifted past every earlier row's.
-    shift = (np.arange(n) * (total.max(initial=0.0) + 1.0))[:, None]
-    j = np.searchsorted((cum + shift).ravel(), arc + shift[cand, 0], side="right") - cand * s
-    j = np.clip(j, 0, s - 1)
-    before = np.where(j > 0, cum[cand, np.maximum(j - 1, 0)], 0.0)
-    frac = (arc - before) / np.maximum(length[cand, j], np.finfo(float).tiny)
-    return cand, j, np.clip(frac, 0.0, 1.0)
-
-
-def _run_middles(cand: np.ndarray, hit: np.ndarray) -> np.ndarray:
-    """Index of the middle sample of every run of consecutive hits of one candidate."""
-    prev = np.concatenate([[False], hit[:-1] & (cand[1:] == cand[:-1])])
-    start = hit & ~prev
-    run = np.cumsum(start) - 1
-    idx = np.flatnonzero(hit)
-    if len(idx) == 0:
-        return idx
-    first = np.full(run[idx].max() + 1, len(hit))
-    np.minimum.at(first, run[idx], idx)
-    last = np.zeros_like(first)
-    np.maximum.at(last, run[idx], idx)
-    return (first + last) // 2
+    cand, pts, inv_z, tangent = curve_hits(
+        uv, seg_ok, length, 1.0 / z, float(e.epipolar_step_px), maximal, float(e.candidate_border_px)
+    )
+    return _Hits(cand, pts, 1.0 / inv_z, tangent)
 
 
 def _cull(

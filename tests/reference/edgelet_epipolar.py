@@ -1,0 +1,47 @@
+"""numpy reference for ``ptam.mapping.edgelet_epipolar_kernels.curve_hits`` (Agility §4.3): every sample of every
+curve as numpy arrays, hits looked up at once, runs found by their starts."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def _samples(length, step):
+    """Row, piece and fraction of the points every ``step`` along each row's polyline of piece lengths (n, s)."""
+    n, s = length.shape
+    cum = np.cumsum(length, axis=1)
+    rows, pieces, fracs = [], [], []
+    for c in range(n):
+        arc = np.arange(int(np.floor(cum[c, -1] / step)) + 1) * step
+        j = np.clip(np.searchsorted(cum[c], arc, side="right"), 0, s - 1)
+        before = np.where(j > 0, cum[c, np.maximum(j - 1, 0)], 0.0)
+        frac = (arc - before) / np.maximum(length[c, j], np.finfo(float).tiny)
+        rows.append(np.full(len(arc), c))
+        pieces.append(j)
+        fracs.append(np.clip(frac, 0.0, 1.0))
+    return np.concatenate(rows), np.concatenate(pieces), np.concatenate(fracs)
+
+
+def _run_middles(cand, hit):
+    prev = np.concatenate([[False], hit[:-1] & (cand[1:] == cand[:-1])])
+    start = np.flatnonzero(hit & ~prev)
+    nxt = np.concatenate([hit[1:] & (cand[1:] == cand[:-1]), [False]])
+    end = np.flatnonzero(hit & ~nxt)
+    return (start + end) // 2
+
+
+def curve_hits_ref(uv, seg_ok, length, inv_z, step, edgels, border):
+    cand, j, frac = _samples(length, step)
+    seg = np.diff(uv, axis=1)
+    pts = uv[cand, j] + frac[:, None] * seg[cand, j]
+    h, w = edgels.shape
+    with np.errstate(invalid="ignore"):
+        inside = (pts[:, 0] >= border) & (pts[:, 1] >= border) & (pts[:, 0] <= w - 1 - border)
+        inside &= pts[:, 1] <= h - 1 - border
+    hit = seg_ok[cand, j] & inside
+    ix = np.rint(np.where(hit[:, None], pts, 0.0)).astype(np.int64)
+    hit &= edgels[ix[:, 1], ix[:, 0]] > 0
+    mid = _run_middles(cand, hit)
+    iz = inv_z[j] + frac * (inv_z[j + 1] - inv_z[j])
+    tangent = seg[cand, j] / np.maximum(length[cand, j], np.finfo(float).tiny)[:, None]
+    return cand[mid], pts[mid], iz[mid], tangent[mid]
