@@ -10,8 +10,8 @@ from ..vocabulary import GroupKind
 
 def print_summary(system, mode: str, dropped: int | None, viewer=None, checkpoints: int = 0) -> None:
     """Frames, tracked %, lost events, relocalisations, keyframes, points, edgelets; median / p95 tracking ms, bundle
-    adjustment runs, frames dropped in realtime mode, frames the viewer had no time to log and map checkpoints
-    written during the run."""
+    adjustment runs, the median edgelet job per keyframe, frames dropped in realtime mode, frames the viewer had no
+    time to log and map checkpoints written during the run."""
     s = system.stats
     snap = system.mapper.snapshot
     kfs = snap.n_keyframes if snap is not None else 0
@@ -37,6 +37,9 @@ def print_summary(system, mode: str, dropped: int | None, viewer=None, checkpoin
         f"BA runs {len(ba['local_ba']) + len(ba['global_ba'])} (local {len(ba['local_ba'])}, "
         f"global {len(ba['global_ba'])})  mode {mode}"
     )
+    jobs = ba.get("edgelet_jobs", [])
+    if jobs:  # Agility §9.2 times edgelet extraction per keyframe
+        line += f"  edgelet job ms median {np.median([j.ms for j in jobs]):.1f}"
     if dropped is not None:
         line += f"  dropped frames {dropped}"
     if viewer is not None and viewer.dropped:
