@@ -192,7 +192,7 @@ class EdgeletLM:
             return {}
         out = inp.edgelets
         if self.n:
-            self.residuals(P)
+            self._residuals(P, self.F, self.use)  # at the last linearisation's sample points: no Jacobians needed
             done = Edgelets.from_frames(self.F)
             centre, direction, normal = out.centre.copy(), out.direction.copy(), out.normal.copy()
             centre[self.es.ids], direction[self.es.ids], normal[self.es.ids] = done.centre, done.direction, done.normal
