@@ -41,12 +41,23 @@ def _sample(uv, length, inv_z, c, j, arc, before):
     return x, y, inv_z[j] + frac * (inv_z[j + 1] - inv_z[j])
 
 
+@njit(nogil=True, cache=True, inline="always")
+def _piece_at(length, c, arc, j, before):
+    """(piece, arc length at its start) of the sample at ``arc`` on polyline c, walking on from piece j, which
+    starts at ``before`` (numpy's searchsorted(side="right") on the cumulative lengths, the last piece at most)."""
+    s = length.shape[1]
+    while j < s - 1 and before + length[c, j] <= arc:
+        before += length[c, j]
+        j += 1
+    return j, before
+
+
 @njit(nogil=True, cache=True)
 def curve_hits(uv, seg_ok, length, inv_z, step, edgels, border):
     """-> candidate (H,), point (H, 2), inverse depth (H,), unit tangent (H, 2) of the middle sample of every run
     of hits, for polylines ``uv`` (n, s + 1, 2) with piece validity ``seg_ok`` and lengths ``length`` (n, s)
     (zero where invalid) and vertex inverse depths ``inv_z`` (s + 1,)."""
-    n, s = length.shape
+    n = length.shape[0]
     h, w = edgels.shape
     count = _sample_count(length, step)
     cap = 0
@@ -66,9 +77,7 @@ def curve_hits(uv, seg_ok, length, inv_z, step, edgels, border):
             hit = False
             if i < count[c]:
                 arc = i * step
-                while j < s - 1 and before + length[c, j] <= arc:  # numpy's searchsorted(side="right")
-                    before += length[c, j]
-                    j += 1
+                j, before = _piece_at(length, c, arc, j, before)
                 x, y, _ = _sample(uv, length, inv_z, c, j, arc, before)
                 if seg_ok[c, j] and x >= border and y >= border and x <= w - 1 - border and y <= h - 1 - border:
                     hit = edgels[int(np.rint(y)), int(np.rint(x))] > 0
@@ -76,7 +85,7 @@ def curve_hits(uv, seg_ok, length, inv_z, step, edgels, border):
                 first = i
             if not hit and first >= 0:
                 mid = (first + i - 1) // 2
-                jm, bm = _piece_at(length, c, mid * step, s)
+                jm, bm = _piece_at(length, c, mid * step, 0, 0.0)
                 x, y, z = _sample(uv, length, inv_z, c, jm, mid * step, bm)
                 cand[out] = c
                 pts[out, 0], pts[out, 1], iz[out] = x, y, z
@@ -86,14 +95,3 @@ def curve_hits(uv, seg_ok, length, inv_z, step, edgels, border):
                 out += 1
                 first = -1
     return cand[:out], pts[:out], iz[:out], tangent[:out]
-
-
-@njit(nogil=True, cache=True)
-def _piece_at(length, c, arc, s):
-    """(piece, arc length at its start) of the sample at ``arc`` on polyline c."""
-    j = 0
-    before = 0.0
-    while j < s - 1 and before + length[c, j] <= arc:
-        before += length[c, j]
-        j += 1
-    return j, before
