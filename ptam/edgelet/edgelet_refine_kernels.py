@@ -5,8 +5,8 @@ Each iteration forms every edgelet's 4×4 normal equations (``edgelet_normal_equ
 solvable — at least two valid measurements and a condition number below 1/ε (extreme eigenvalues of the
 symmetric H by cyclic Jacobi rotations) — by Gaussian elimination with partial pivoting, and applies
 E_WE ← E_WE · exp(μ) re-orthonormalised (``frames_updated``); an unsolvable edgelet takes μ = 0. The mapper
-calls it for every new edgelet and every edgelet a new keyframe measures, a few hundred per keyframe, where
-numpy's per-call overheads (batched eigenvalues, solve, frame rebuilds) had cost more than the arithmetic.
+calls it for every new edgelet on its source, target and check measurements, where numpy's per-call overheads
+(batched eigenvalues, solve, frame rebuilds) had cost more than the arithmetic.
 The numpy reference is ``tests/reference/edgelet_ba.py``'s ``refine_edgelets_ref``.
 """
 

@@ -33,7 +33,7 @@ def _sample_count(length, step):
 
 @njit(nogil=True, cache=True)
 def _sample(uv, length, inv_z, c, j, arc, before):
-    """The point, inverse depth and piece index of the sample at ``arc`` on piece j, which starts at ``before``."""
+    """(x, y, inverse depth) of the sample at ``arc`` on piece j of polyline c, the piece starting at ``before``."""
     frac = (arc - before) / max(length[c, j], np.finfo(np.float64).tiny)
     frac = min(1.0, max(0.0, frac))
     x = uv[c, j, 0] + frac * (uv[c, j + 1, 0] - uv[c, j, 0])
