@@ -140,7 +140,7 @@ def test_envelope_cholesky_on_a_banded_system():
     S = assemble(blocks, rows, cols, nb)
     S += np.diag(np.abs(S).sum(axis=1))  # diagonally dominant, so positive definite
     blocks[:nb] = np.stack([S[6 * r : 6 * r + 6, 6 * r : 6 * r + 6] for r in range(nb)])
-    rhs = rng.normal(size=6 * nb)
+    rhs = rng.normal(size=(6 * nb, 2))  # two right-hand sides on one factorisation
     for dense in (True, False):
         rank = np.arange(nb) if dense else np.argsort(order)
         first, ptr = ba_solve.ba_envelope(rows, cols, rank, dense)
@@ -162,5 +162,5 @@ def test_pair_script(problem):
 def test_not_positive_definite_is_reported():
     one = np.zeros(1, np.int64)
     first, ptr = ba_solve.ba_envelope(one, one, one, True)
-    _, ok = ba_solve.ba_envelope_solve(-np.eye(6)[None], one, one, one, first, ptr, np.ones(6))
+    _, ok = ba_solve.ba_envelope_solve(-np.eye(6)[None], one, one, one, first, ptr, np.ones((6, 1)))
     assert not ok

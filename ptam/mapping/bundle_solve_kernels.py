@@ -84,13 +84,14 @@ def _envelope_cholesky(env, first, ptr, n):
 
 @njit(nogil=True, cache=True, fastmath=True)
 def ba_envelope_solve(blocks, pair_rows, pair_cols, rank, first, ptr, rhs):
-    """Solve S x = rhs by a Cholesky factorisation inside the envelope (fill-in never leaves it).
+    """Solve S x = rhs (n, k), k right-hand sides, by a Cholesky factorisation inside the envelope (fill-in never
+    leaves it).
 
     Plain loops instead of LAPACK: OpenBLAS threads would compete with the tracker's thread (and are
     orders of magnitude slower on a loaded machine). Returns (x, ok); ok is False when S is not positive
     definite (PTAM code: Cholesky failure, "the map is probably corrupt").
     """
-    n = rhs.shape[0]
+    n, k = rhs.shape
     env = np.zeros(ptr[n])
     for q in range(blocks.shape[0]):
         R = 6 * rank[pair_rows[q]]
@@ -101,24 +102,25 @@ def ba_envelope_solve(blocks, pair_rows, pair_cols, rank, first, ptr, rhs):
                 if j <= i:
                     env[ptr[i] + j - first[i]] = blocks[q, a, b]
     if not _envelope_cholesky(env, first, ptr, n):
-        return np.zeros(n), False
+        return np.zeros((n, k)), False
     y = np.empty(n)
-    for r in range(rank.shape[0]):
-        for a in range(6):
-            y[6 * rank[r] + a] = rhs[6 * r + a]
-    for i in range(n):
-        oi = ptr[i] - first[i]
-        s = y[i]
-        for k in range(first[i], i):
-            s -= env[oi + k] * y[k]
-        y[i] = s / env[oi + i]
-    for i in range(n - 1, -1, -1):
-        oi = ptr[i] - first[i]
-        y[i] /= env[oi + i]
-        for k in range(first[i], i):
-            y[k] -= env[oi + k] * y[i]
-    x = np.empty(n)
-    for r in range(rank.shape[0]):
-        for a in range(6):
-            x[6 * r + a] = y[6 * rank[r] + a]
+    x = np.empty((n, k))
+    for c in range(k):
+        for r in range(rank.shape[0]):
+            for a in range(6):
+                y[6 * rank[r] + a] = rhs[6 * r + a, c]
+        for i in range(n):
+            oi = ptr[i] - first[i]
+            s = y[i]
+            for j in range(first[i], i):
+                s -= env[oi + j] * y[j]
+            y[i] = s / env[oi + i]
+        for i in range(n - 1, -1, -1):
+            oi = ptr[i] - first[i]
+            y[i] /= env[oi + i]
+            for j in range(first[i], i):
+                y[j] -= env[oi + j] * y[i]
+        for r in range(rank.shape[0]):
+            for a in range(6):
+                x[6 * r + a, c] = y[6 * rank[r] + a]
     return x, True

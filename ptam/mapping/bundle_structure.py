@@ -165,7 +165,9 @@ class ReducedSolver:
         return int(self.ptr[-1])
 
     def solve(self, blocks: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-        x, ok = ba_envelope_solve(blocks, self.rows, self.cols, self.rank, self.first, self.ptr, rhs)
+        """x with S x = rhs, for one right-hand side (n,) or several (n, k) on one factorisation."""
+        rhs2 = np.ascontiguousarray(rhs, dtype=np.float64).reshape(len(rhs), -1)
+        x, ok = ba_envelope_solve(blocks, self.rows, self.cols, self.rank, self.first, self.ptr, rhs2)
         if not ok:
             raise np.linalg.LinAlgError("bundle adjustment: reduced camera system is not positive definite")
-        return x
+        return x.reshape(np.shape(rhs))
