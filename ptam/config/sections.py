@@ -217,6 +217,7 @@ class BundleConfig:
     converge_squared_update: Annotated[float, Range("[0, inf)")]
     min_tukey_sigma: Annotated[float, Range("(0, inf)")]
     hold_scale: bool
+    hold_underdetermined: bool
     local_neighbours: Annotated[int, Range("[0, inf)")]
     dense_max_cameras: Annotated[int, Range("[0, inf)")]
 

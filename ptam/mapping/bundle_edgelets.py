@@ -177,6 +177,12 @@ class EdgeletLM:
         if F_new is not None:
             self.F = F_new
 
+    def hold_underdetermined(self) -> None:
+        """Edgelets left with fewer than two measurements in the problem are held (``_LMState``'s rule for points)."""
+        if self.n:
+            medg = self.es.medg
+            self.use &= np.bincount(medg[self.use], minlength=len(self.es.ids))[medg] >= 2
+
     def flag(self) -> np.ndarray:
         """The measurements that dropped out of the system at the last linearisation."""
         return self.use & ~self.live

@@ -3,11 +3,12 @@
 Global BA holds the first keyframe fixed (PTAM §6.3, code): that fixes six of the seven degrees of freedom a
 monocular map has, and the cost does not change when the whole map is scaled about the first keyframe. With points
 alone Levenberg-Marquardt barely moves along that direction (desk_bricks: the keyframes' scale against the truth
-stays within 0.1 % over the run); with edgelets, whose Jacobians treat their sample points as fixed while the
-steps re-place them (``bundle_edgelets``), each global BA moved it by up to 0.6 %, and the frames tracked in
-between carry the scale of their moment (desk_bricks: 0.4 mm ATE with points, 4.6 mm with edgelets, while the
-final keyframes are 0.2 mm off either way). ``hold_scale`` undoes the scale a global BA gave the keyframes it
-started from: a similarity about the first keyframe's centre, which changes no residual.
+stays within 0.1 % over the run); with edgelets, whose 4-DOF update cannot follow that scaling
+(``bundle_gauge``), each global BA moved it by up to 0.6 %, and the frames tracked in between carry the scale of
+their moment (desk_bricks: 0.4 mm ATE with points, 4.6 mm with edgelets, while the final keyframes are 0.2 mm off
+either way). The LM steps themselves now leave the keyframes' scale alone (``bundle_gauge.ScaleGauge``);
+``hold_scale`` undoes what scale a global BA still gave the keyframes it started from (second order in the steps):
+a similarity about the first keyframe's centre, which changes no residual.
 """
 
 from __future__ import annotations
