@@ -131,7 +131,7 @@ class Bundle:
         phases["setup"] = time.perf_counter() - t_start
         edg_lm = EdgeletLM(self.camera, st, edg)
         state = _LMState(st, inp.poses[st.cams], inp.points[st.pts], inp.meas_xy[st.sel], inv_sigma, edg_lm)
-        state.gauge = ScaleGauge.of(st) if self.cfg.hold_scale else None
+        state.gauge = ScaleGauge.of(st) if self.cfg.hold_scale and edg_lm.n else None  # points alone: PTAM's step
         status = self._levenberg_marquardt(state, solver, should_abort, phases)
         return self._result(inp, state, status, phases, t_start, edg)
 

@@ -13,7 +13,7 @@ a desk_corner global BA) and the map came out scaled (``gauge.hold_scale`` undid
 translations under the scaling (g_i = −R_i (C_i − C_0) for free keyframe i): δμ = S⁻¹b − S⁻¹g (gᵀS⁻¹b)/(gᵀS⁻¹g),
 both solves on one factorisation. Points and edgelets then follow the keyframes by back-substitution, so the step
 is the damped model's best one that does not scale the keyframes, and LM's acceptance test works on it as on any.
-Points alone hardly differ: their unconstrained steps have almost no scale component.
+Adjustments without edgelets keep PTAM's step: the points' gradient has no component along the scale.
 """
 
 from __future__ import annotations

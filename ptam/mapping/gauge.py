@@ -6,7 +6,7 @@ alone Levenberg-Marquardt barely moves along that direction (desk_bricks: the ke
 stays within 0.1 % over the run); with edgelets, whose 4-DOF update cannot follow that scaling
 (``bundle_gauge``), each global BA moved it by up to 0.6 %, and the frames tracked in between carry the scale of
 their moment (desk_bricks: 0.4 mm ATE with points, 4.6 mm with edgelets, while the final keyframes are 0.2 mm off
-either way). The LM steps themselves now leave the keyframes' scale alone (``bundle_gauge.ScaleGauge``);
+either way). The LM steps of adjustments with edgelets now leave the keyframes' scale alone (``bundle_gauge``);
 ``hold_scale`` undoes what scale a global BA still gave the keyframes it started from (second order in the steps):
 a similarity about the first keyframe's centre, which changes no residual.
 """
