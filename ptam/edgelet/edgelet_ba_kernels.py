@@ -45,7 +45,7 @@ def sample_in_camera(T, E, z):
 def measurement_rows(cam, T, E, z2, a, n, J, jp, je, r):
     """One measurement's residuals r (2,) px and Jacobian rows jp (2, 6), je (2, 4) for pose T, edgelet frame E,
     sample points at E-frame z2 (2,) and the measured line through a with unit normal n; both sample points must
-    be in front of the camera."""
+    be in front of the camera. Inlined: called, the BA's rows loop took 1.9x as long (numba 0.68)."""
     # The edgelet's x- and y-axes in the camera frame.
     xc0 = T[0, 0] * E[0, 0] + T[0, 1] * E[1, 0] + T[0, 2] * E[2, 0]
     xc1 = T[1, 0] * E[0, 0] + T[1, 1] * E[1, 0] + T[1, 2] * E[2, 0]

@@ -362,9 +362,9 @@ class _LMState:
 
     def hold_underdetermined(self) -> None:
         """Points (and edgelets) left with fewer than two measurements in the problem are held where they are: one
-        measurement fixes no depth, and LM's steps, scaled per parameter by the damping, slid such a point along its
-        ray by amounts that grew as λ fell (1.7 mm per iteration to the iteration limit, desk_table). Their
-        measurements leave the problem without being outliers."""
+        measurement fixes no depth, and LM's steps, damped per parameter, slide such a point along its ray by
+        amounts that grow as λ falls (1.7 mm per iteration up to the iteration limit on a desk_table global BA while
+        edgelets still moved the scale). Their measurements leave the problem without being outliers."""
         n = np.bincount(self.st.mpt[self.use], minlength=len(self.st.pts))
         self.use &= n[self.st.mpt] >= 2
         self.edg.hold_underdetermined()
