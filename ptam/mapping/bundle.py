@@ -45,7 +45,7 @@ from .bundle_edgelets import EdgeletLM
 from .bundle_gauge import ScaleGauge
 from .bundle_inputs import EdgeletBundleInput, _checked_inputs, _Inputs
 from .bundle_kernels import ba_backsub, ba_linearise, ba_residuals, ba_robust_cost, ba_schur, tukey_cutoff_sq
-from .bundle_structure import BundleStructure, ReducedSolver, build_structure
+from .bundle_structure import BundleStructure, ReducedSolver, build_structure, seen_twice
 
 AbortFlag = threading.Event | Callable[[], bool] | None
 
@@ -365,8 +365,7 @@ class _LMState:
         measurement fixes no depth, and LM's steps, damped per parameter, slide such a point along its ray by
         amounts that grow as λ falls (1.7 mm per iteration up to the iteration limit on a desk_table global BA while
         edgelets still moved the scale). Their measurements leave the problem without being outliers."""
-        n = np.bincount(self.st.mpt[self.use], minlength=len(self.st.pts))
-        self.use &= n[self.st.mpt] >= 2
+        self.use &= seen_twice(self.st.mpt, self.use, len(self.st.pts))
         self.edg.hold_underdetermined()
 
     def any_use(self) -> bool:

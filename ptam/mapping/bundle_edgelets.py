@@ -37,7 +37,7 @@ from .bundle_edgelet_kernels import (
 )
 from .bundle_inputs import EdgeletBundleInput
 from .bundle_kernels import ba_backsub, ba_robust_cost
-from .bundle_structure import BundleStructure, EdgeletStructure
+from .bundle_structure import BundleStructure, EdgeletStructure, seen_twice
 
 
 class EdgeletLM:
@@ -180,8 +180,7 @@ class EdgeletLM:
     def hold_underdetermined(self) -> None:
         """Edgelets left with fewer than two measurements in the problem are held (``_LMState``'s rule for points)."""
         if self.n:
-            medg = self.es.medg
-            self.use &= np.bincount(medg[self.use], minlength=len(self.es.ids))[medg] >= 2
+            self.use &= seen_twice(self.es.medg, self.use, len(self.es.ids))
 
     def flag(self) -> np.ndarray:
         """The measurements that dropped out of the system at the last linearisation."""

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..map.snapshot import camera_centres
 from .bundle_structure import BundleStructure, ReducedSolver
 
 
@@ -41,8 +42,7 @@ class ScaleGauge:
     def direction(self, P: np.ndarray, free: np.ndarray) -> np.ndarray:
         """g (6·n_free,): the free keyframes' pose updates (translation, rotation) that scale the map about the fixed
         keyframe's centre c₀ by 1 + ε, per unit ε (T ← exp(μ) T: the translation moves by −R (C − c₀))."""
-        T0 = P[self.fixed]
-        c0 = -T0[:3, :3].T @ T0[:3, 3]
+        c0 = camera_centres(P[self.fixed : self.fixed + 1])[0]
         g = np.zeros((len(free), 6))
         g[:, :3] = P[free, :3, 3] + np.einsum("nij,j->ni", P[free, :3, :3], c0)  # −R (C − c₀), C = −Rᵀ t
         return g.ravel()

@@ -68,6 +68,11 @@ def _landmarks(kf_idx: np.ndarray, lm: np.ndarray, n_cams: int, what: str) -> tu
     return ids, mlm.astype(np.int64)
 
 
+def seen_twice(mlm: np.ndarray, use: np.ndarray, n: int) -> np.ndarray:
+    """Per measurement: its landmark (of ``n``) has at least two measurements in ``use``."""
+    return np.bincount(mlm[use], minlength=n)[mlm] >= 2
+
+
 def _starts(mlm: np.ndarray, n: int) -> np.ndarray:
     return np.concatenate([[0], np.cumsum(np.bincount(mlm, minlength=n))]).astype(np.int64)
 
