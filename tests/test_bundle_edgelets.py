@@ -178,29 +178,38 @@ def test_residuals_kernel_matches_reference(problem):
     assert close(err[ok], r_err[ok]) and not err[~use].any() and close(e2, np.where(ok, np.sum(r_err**2, 1), 0.0))
 
 
+def _w(A, B, live, mrow):
+    """W = AᵀB (M, 6, 4) of the live measurements with a free camera, zero elsewhere (the references' W)."""
+    on = (live & (mrow >= 0))[:, None, None]
+    return np.where(on, np.einsum("ksa,ksb->kab", A, B), 0.0)
+
+
 def test_kernels_match_reference(problem):
     st, args, (err, jp, je, _, _), (r_err, r_Jp, r_Je, _) = _linearised(problem)
     cam, P, F, meas, use, e2, bad, c2 = args
     es, nf, ne = st.edgelets, st.n_free, len(st.edgelets.ids)
     U0 = np.random.default_rng(2).normal(size=(nf, 6, 6))
+    U0 = U0 + U0.transpose(0, 2, 1)  # the points' U: symmetric
     U, ea = U0.copy(), np.ones((nf, 6))
-    V, eb, W, live = np.empty((ne, 4, 4)), np.empty((ne, 4)), np.full((len(use), 6, 4), 7.0), np.empty(len(use), bool)
-    EK.ba_edgelet_linearise(err, jp, je, e2, bad, use, c2, es.medg, es.mrow, U, ea, V, eb, W, live)
+    V, eb, live = np.empty((ne, 4, 4)), np.empty((ne, 4)), np.empty(len(use), bool)
+    A, B = np.full((len(use), 2, 6), 7.0), np.full((len(use), 2, 4), 7.0)
+    EK.ba_edgelet_linearise(err, jp, je, e2, bad, use, c2, es.medg, es.mrow, U, ea, V, eb, A, B, live)
     rU, rea, rV, reb, rW, rlive = RE.ba_edgelet_linearise_ref(
         r_err, r_Jp, r_Je, e2, bad, use, c2, es.mrow, es.medg, nf, ne
     )
     assert np.array_equal(live, rlive) and 0 < live.sum() < use.sum()
+    W = _w(A, B, live, es.mrow)
     assert close(U - U0, rU) and close(ea - 1.0, rea) and close(V, rV) and close(eb, reb) and close(W, rW)
 
     V[0] = 0.0  # an edgelet without live measurements: V* is singular and the edgelet stays where it is
     lam = 1e-3
     blocks, rhs, Vinv = np.zeros((len(st.pair_rows), 6, 6)), np.zeros(6 * nf), np.empty_like(V)
-    EK.ba_edgelet_schur(V, eb, W, live, lam, es.mrow, es.e_start, es.order, es.pair_id, blocks, rhs, Vinv)
+    EK.ba_edgelet_schur(V, eb, A, B, live, lam, es.mrow, es.e_start, es.order, es.pair_id, blocks, rhs, Vinv)
     rS, rrhs, rVinv = RE.ba_edgelet_schur_ref(V, eb, W, live, lam, es.mrow, es.medg, nf)
     assert close(assemble(blocks, st.pair_rows, st.pair_cols, nf), rS) and close(rhs, rrhs) and close(Vinv, rVinv)
     assert not Vinv[0].any()
     dcam = np.random.default_rng(3).normal(size=6 * nf)
-    de = K.ba_backsub(Vinv, eb, W, live, es.mrow, es.e_start, es.order, dcam)
+    de = EK.ba_edgelet_backsub(Vinv, eb, A, B, live, es.mrow, es.e_start, es.order, dcam)
     assert close(de, RE.ba_edgelet_backsub_ref(Vinv, eb, W, live, es.mrow, es.medg, dcam))
 
 
@@ -217,17 +226,18 @@ def test_one_walk_numbers_the_pairs_of_points_and_edgelets(problem):
     W, live = np.zeros((k, 6, 3)), np.empty(k, bool)
     uv, every = prob.meas_xy[st.sel], np.ones(k, bool)
     K.ba_linearise(cam_p, P, X, st.mcam, st.mpt, uv, inv_sigma, every, 1e6, st.cam_row, U, ea, V, eb, W, live)
-    Ve, ebe, We, livee = np.empty((ne, 4, 4)), np.empty((ne, 4)), np.zeros((len(use), 6, 4)), np.empty(len(use), bool)
+    Ve, ebe, livee = np.empty((ne, 4, 4)), np.empty((ne, 4)), np.empty(len(use), bool)
+    Ae, Be = np.zeros((len(use), 2, 6)), np.zeros((len(use), 2, 4))
     err, jp, je = rows[:3]
-    EK.ba_edgelet_linearise(err, jp, je, e2, bad, use, c2, es.medg, es.mrow, U, ea, Ve, ebe, We, livee)
+    EK.ba_edgelet_linearise(err, jp, je, e2, bad, use, c2, es.medg, es.mrow, U, ea, Ve, ebe, Ae, Be, livee)
     lam = 1e-2
     blocks, rhs = np.empty((len(st.pair_rows), 6, 6)), np.empty(6 * nf)
     K.ba_schur(U, ea, V, eb, W, live, lam, st.mrow, st.pt_start, st.order, st.pair_id, blocks, rhs, np.empty_like(V))
     EK.ba_edgelet_schur(
-        Ve, ebe, We, livee, lam, es.mrow, es.e_start, es.order, es.pair_id, blocks, rhs, np.empty_like(Ve)
+        Ve, ebe, Ae, Be, livee, lam, es.mrow, es.e_start, es.order, es.pair_id, blocks, rhs, np.empty_like(Ve)
     )
     pS, prhs, _ = R.ba_schur_ref(U, ea, V, eb, W, live, lam, st.mrow, st.mpt)
-    eS, erhs, _ = RE.ba_edgelet_schur_ref(Ve, ebe, We, livee, lam, es.mrow, es.medg, nf)
+    eS, erhs, _ = RE.ba_edgelet_schur_ref(Ve, ebe, _w(Ae, Be, livee, es.mrow), livee, lam, es.mrow, es.medg, nf)
     assert close(assemble(blocks, st.pair_rows, st.pair_cols, nf), pS + eS) and close(rhs, prhs + erhs)
 
 

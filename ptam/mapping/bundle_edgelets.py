@@ -30,13 +30,14 @@ from ..camera.model import CameraModel
 from ..edgelet import Edgelets, perp
 from ..edgelet.edgelet_ba_kernels import frames_updated
 from .bundle_edgelet_kernels import (
+    ba_edgelet_backsub,
     ba_edgelet_linearise,
     ba_edgelet_residuals,
     ba_edgelet_rows,
     ba_edgelet_schur,
 )
 from .bundle_inputs import EdgeletBundleInput
-from .bundle_kernels import ba_backsub, ba_robust_cost
+from .bundle_kernels import ba_robust_cost
 from .bundle_structure import BundleStructure, EdgeletStructure, seen_twice
 
 
@@ -64,7 +65,8 @@ class EdgeletLM:
         ne = len(es.ids)
         self.V = np.zeros((ne, 4, 4))
         self.eb = np.zeros((ne, 4))
-        self.W = np.zeros((self.n, 6, 4))
+        self.A = np.zeros((self.n, 2, 6))
+        self.B = np.zeros((self.n, 2, 4))
         self.Vinv = np.zeros((ne, 4, 4))
         self.err = np.zeros((self.n, 2))
         self.z_mean = np.zeros(ne)
@@ -124,7 +126,8 @@ class EdgeletLM:
             ea,
             self.V,
             self.eb,
-            self.W,
+            self.A,
+            self.B,
             self.live,
         )
         return float(ba_robust_cost(self.e2, self.bad, self.use, c2))
@@ -135,7 +138,8 @@ class EdgeletLM:
             ba_edgelet_schur(
                 self.V,
                 self.eb,
-                self.W,
+                self.A,
+                self.B,
                 self.live,
                 lam,
                 es.mrow,
@@ -162,7 +166,7 @@ class EdgeletLM:
         if not self.n:
             return np.zeros((0, 4))
         es = self.es
-        return ba_backsub(self.Vinv, self.eb, self.W, self.live, es.mrow, es.e_start, es.order, dcam)
+        return ba_edgelet_backsub(self.Vinv, self.eb, self.A, self.B, self.live, es.mrow, es.e_start, es.order, dcam)
 
     def trial(self, P_new: np.ndarray, de: np.ndarray, c2: float) -> tuple[np.ndarray | None, float]:
         """The frames after the step ``de`` and their cost at ``P_new`` on the measurements live at linearisation."""

@@ -296,30 +296,21 @@ def inv_sym3(M, lam, out):
 
 @njit(nogil=True, cache=True)
 def _sub_wvwt(blocks, q, WVa, W, kb):
-    """blocks[q] −= WVa · W[kb]ᵀ (6×d · d×6); the innermost product of the O(N²M) pair walk, written out for
-    points (d = 3) and edgelets (d = 4): a loop over d there costs global BA ~30 %."""
-    if WVa.shape[1] == 3:
-        for a in range(6):
-            w0 = WVa[a, 0]
-            w1 = WVa[a, 1]
-            w2 = WVa[a, 2]
-            for b in range(6):
-                blocks[q, a, b] -= w0 * W[kb, b, 0] + w1 * W[kb, b, 1] + w2 * W[kb, b, 2]
-        return
+    """blocks[q] −= WVa · W[kb]ᵀ (6×3 · 3×6); the innermost product of the O(N²M) pair walk, written out: a loop
+    over the three columns there costs global BA ~30 %."""
     for a in range(6):
         w0 = WVa[a, 0]
         w1 = WVa[a, 1]
         w2 = WVa[a, 2]
-        w3 = WVa[a, 3]
         for b in range(6):
-            blocks[q, a, b] -= w0 * W[kb, b, 0] + w1 * W[kb, b, 1] + w2 * W[kb, b, 2] + w3 * W[kb, b, 3]
+            blocks[q, a, b] -= w0 * W[kb, b, 0] + w1 * W[kb, b, 1] + w2 * W[kb, b, 2]
 
 
 @njit(nogil=True, cache=True)
 def eliminate(Vinv, eb, W, live, mrow, start, order, pair_id, blocks, rhs):
-    """Subtract Σ W V*⁻¹ Wᵀ of every landmark (points: 3 DOF; edgelets: 4, Agility §4.4) from the reduced
-    system's ``blocks`` and W V*⁻¹ ε_b from ``rhs``. ``order`` lists the measurements by landmark (``start``),
-    then camera row; ``pair_id`` numbers the camera pairs in that walk (``ba_pair_script``)."""
+    """Subtract Σ W V*⁻¹ Wᵀ of every point from the reduced system's ``blocks`` and W V*⁻¹ ε_b from ``rhs``.
+    ``order`` lists the measurements by point (``start``), then camera row; ``pair_id`` numbers the camera pairs
+    in that walk (``ba_pair_script``; edgelets continue it in ``bundle_edgelet_kernels.ba_edgelet_schur``)."""
     d = W.shape[2]
     WVa = np.empty((6, d))
     q = 0
@@ -374,8 +365,7 @@ def ba_schur(U, ea, V, eb, W, live, lam, mrow, pt_start, order, pair_id, blocks,
 
 @njit(nogil=True, cache=True)
 def ba_backsub(Vinv, eb, W, live, mrow, pt_start, order, dcam):
-    """Landmark updates δp = V*⁻¹ (ε_b − Σ_j W_jᵀ δμ_j) (M, d) from the camera updates dcam (6·n_free,); points
-    (d = 3) and edgelets (d = 4) alike."""
+    """Point updates δp = V*⁻¹ (ε_b − Σ_j W_jᵀ δμ_j) (M, 3) from the camera updates dcam (6·n_free,)."""
     m = pt_start.shape[0] - 1
     d = W.shape[2]
     dp = np.zeros((m, d))
