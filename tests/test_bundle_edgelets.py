@@ -11,6 +11,7 @@ from ptam.geometry import so3
 from ptam.map.snapshot import camera_centres
 from ptam.mapping import bundle_edgelet_kernels as EK
 from ptam.mapping import bundle_kernels as K
+from ptam.mapping import bundle_schur_kernels as SK
 from ptam.mapping.bundle import Bundle
 from ptam.mapping.bundle_edgelets import EdgeletLM
 from ptam.mapping.bundle_inputs import EdgeletBundleInput
@@ -178,12 +179,6 @@ def test_residuals_kernel_matches_reference(problem):
     assert close(err[ok], r_err[ok]) and not err[~use].any() and close(e2, np.where(ok, np.sum(r_err**2, 1), 0.0))
 
 
-def _w(A, B, live, mrow):
-    """W = AᵀB (M, 6, 4) of the live measurements with a free camera, zero elsewhere (the references' W)."""
-    on = (live & (mrow >= 0))[:, None, None]
-    return np.where(on, np.einsum("ksa,ksb->kab", A, B), 0.0)
-
-
 def test_kernels_match_reference(problem):
     st, args, (err, jp, je, _, _), (r_err, r_Jp, r_Je, _) = _linearised(problem)
     cam, P, F, meas, use, e2, bad, c2 = args
@@ -198,7 +193,7 @@ def test_kernels_match_reference(problem):
         r_err, r_Jp, r_Je, e2, bad, use, c2, es.mrow, es.medg, nf, ne
     )
     assert np.array_equal(live, rlive) and 0 < live.sum() < use.sum()
-    W = _w(A, B, live, es.mrow)
+    W = R.w_blocks(A, B, live, es.mrow)
     assert close(U - U0, rU) and close(ea - 1.0, rea) and close(V, rV) and close(eb, reb) and close(W, rW)
 
     V[0] = 0.0  # an edgelet without live measurements: V* is singular and the edgelet stays where it is
@@ -209,7 +204,7 @@ def test_kernels_match_reference(problem):
     assert close(assemble(blocks, st.pair_rows, st.pair_cols, nf), rS) and close(rhs, rrhs) and close(Vinv, rVinv)
     assert not Vinv[0].any()
     dcam = np.random.default_rng(3).normal(size=6 * nf)
-    de = EK.ba_edgelet_backsub(Vinv, eb, A, B, live, es.mrow, es.e_start, es.order, dcam)
+    de = SK.ba_backsub(Vinv, eb, A, B, live, es.mrow, es.e_start, es.order, dcam)
     assert close(de, RE.ba_edgelet_backsub_ref(Vinv, eb, W, live, es.mrow, es.medg, dcam))
 
 
@@ -223,21 +218,23 @@ def test_one_walk_numbers_the_pairs_of_points_and_edgelets(problem):
     k = len(st.sel)
     inv_sigma = np.ldexp(1.0, -prob.meas_level[st.sel])
     U, ea, V, eb = np.empty((nf, 6, 6)), np.empty((nf, 6)), np.empty((m, 3, 3)), np.empty((m, 3))
-    W, live = np.zeros((k, 6, 3)), np.empty(k, bool)
+    Ap, Bp, live = np.zeros((k, 2, 6)), np.zeros((k, 2, 3)), np.empty(k, bool)
     uv, every = prob.meas_xy[st.sel], np.ones(k, bool)
-    K.ba_linearise(cam_p, P, X, st.mcam, st.mpt, uv, inv_sigma, every, 1e6, st.cam_row, U, ea, V, eb, W, live)
+    K.ba_linearise(cam_p, P, X, st.mcam, st.mpt, uv, inv_sigma, every, 1e6, st.cam_row, U, ea, V, eb, Ap, Bp, live)
     Ve, ebe, livee = np.empty((ne, 4, 4)), np.empty((ne, 4)), np.empty(len(use), bool)
     Ae, Be = np.zeros((len(use), 2, 6)), np.zeros((len(use), 2, 4))
     err, jp, je = rows[:3]
     EK.ba_edgelet_linearise(err, jp, je, e2, bad, use, c2, es.medg, es.mrow, U, ea, Ve, ebe, Ae, Be, livee)
     lam = 1e-2
     blocks, rhs = np.empty((len(st.pair_rows), 6, 6)), np.empty(6 * nf)
-    K.ba_schur(U, ea, V, eb, W, live, lam, st.mrow, st.pt_start, st.order, st.pair_id, blocks, rhs, np.empty_like(V))
+    SK.ba_schur(
+        U, ea, V, eb, Ap, Bp, live, lam, st.mrow, st.pt_start, st.order, st.pair_id, blocks, rhs, np.empty_like(V)
+    )
     EK.ba_edgelet_schur(
         Ve, ebe, Ae, Be, livee, lam, es.mrow, es.e_start, es.order, es.pair_id, blocks, rhs, np.empty_like(Ve)
     )
-    pS, prhs, _ = R.ba_schur_ref(U, ea, V, eb, W, live, lam, st.mrow, st.mpt)
-    eS, erhs, _ = RE.ba_edgelet_schur_ref(Ve, ebe, _w(Ae, Be, livee, es.mrow), livee, lam, es.mrow, es.medg, nf)
+    pS, prhs, _ = R.ba_schur_ref(U, ea, V, eb, R.w_blocks(Ap, Bp, live, st.mrow), live, lam, st.mrow, st.mpt)
+    eS, erhs, _ = RE.ba_edgelet_schur_ref(Ve, ebe, R.w_blocks(Ae, Be, livee, es.mrow), livee, lam, es.mrow, es.medg, nf)
     assert close(assemble(blocks, st.pair_rows, st.pair_cols, nf), pS + eS) and close(rhs, prhs + erhs)
 
 

@@ -6,6 +6,7 @@ import pytest
 from ptam.camera import FovCamera, PinholeCamera, RadTanCamera
 from ptam.geometry import se3
 from ptam.mapping import bundle_kernels as K
+from ptam.mapping import bundle_schur_kernels as SK
 from ptam.mapping import bundle_solve_kernels as ba_solve
 from ptam.mapping.bundle_structure import ReducedSolver, build_structure
 from tests.reference import bundle as R
@@ -85,16 +86,17 @@ def linearised(problem):
     K.ba_residuals(cam.kernel_params(), P, X, st.mcam, st.mpt, uv, inv_sigma, use, np.empty((n, 2)), e2, bad)
     c2 = K.tukey_cutoff_sq(e2, use, bad, 0.4)
     U, ea, V, eb = np.empty((nf, 6, 6)), np.empty((nf, 6)), np.empty((m, 3, 3)), np.empty((m, 3))
-    W, live = np.zeros((n, 6, 3)), np.empty(n, bool)
+    A, B, live = np.full((n, 2, 6), 7.0), np.full((n, 2, 3), 7.0), np.empty(n, bool)
     cost = K.ba_linearise(
-        cam.kernel_params(), P, X, st.mcam, st.mpt, uv, inv_sigma, use, c2, st.cam_row, U, ea, V, eb, W, live
+        cam.kernel_params(), P, X, st.mcam, st.mpt, uv, inv_sigma, use, c2, st.cam_row, U, ea, V, eb, A, B, live
     )
-    return c2, (U, ea, V, eb, W, live, cost)
+    return c2, (U, ea, V, eb, (A, B), live, cost)
 
 
 def test_linearise_blocks(problem):
     cam, P, X, uv, inv_sigma, use, st = problem
-    c2, (U, ea, V, eb, W, live, cost) = linearised(problem)
+    c2, (U, ea, V, eb, AB, live, cost) = linearised(problem)
+    W = R.w_blocks(*AB, live, st.mrow)
     rU, rea, rV, reb, rW, rlive, rcost = R.ba_linearise_ref(
         cam, P, X, st.mcam, st.mpt, uv, inv_sigma, use, c2, st.cam_row, len(st.pts)
     )
@@ -108,12 +110,13 @@ def test_linearise_blocks(problem):
 
 def test_schur_backsub_and_solvers(problem):
     cam, P, X, uv, inv_sigma, use, st = problem
-    _, (U, ea, V, eb, W, live, _) = linearised(problem)
+    _, (U, ea, V, eb, AB, live, _) = linearised(problem)
+    W = R.w_blocks(*AB, live, st.mrow)
     V[0] = 0.0  # a point without measurements: V* is singular and PTAM leaves the point alone
     lam = 1e-3
     nf = st.n_free
     blocks, rhs, Vinv = np.empty((len(st.pair_rows), 6, 6)), np.empty(6 * nf), np.empty_like(V)
-    K.ba_schur(U, ea, V, eb, W, live, lam, st.mrow, st.pt_start, st.order, st.pair_id, blocks, rhs, Vinv)
+    SK.ba_schur(U, ea, V, eb, *AB, live, lam, st.mrow, st.pt_start, st.order, st.pair_id, blocks, rhs, Vinv)
     S = assemble(blocks, st.pair_rows, st.pair_cols, nf)
     rS, rrhs, rVinv = R.ba_schur_ref(U, ea, V, eb, W, live, lam, st.mrow, st.mpt)
     assert close(S, rS) and close(rhs, rrhs) and close(Vinv, rVinv)
@@ -123,7 +126,7 @@ def test_schur_backsub_and_solvers(problem):
     assert close(x, np.linalg.solve(rS, rrhs), 1e-8)
     assert close(ReducedSolver(st, dense=False).solve(blocks, rhs), x, 1e-8)
 
-    dp = K.ba_backsub(Vinv, eb, W, live, st.mrow, st.pt_start, st.order, x)
+    dp = SK.ba_backsub(Vinv, eb, *AB, live, st.mrow, st.pt_start, st.order, x)
     assert close(dp, R.ba_backsub_ref(Vinv, eb, W, live, st.mrow, st.mpt, x))
 
 
@@ -154,7 +157,7 @@ def test_envelope_cholesky_on_a_banded_system():
 def test_pair_script(problem):
     st = problem[-1]
     ref = R.ba_pair_script_ref(st.pt_start, st.order, st.mrow)
-    pair_id, rows, cols = K.ba_pair_script(st.pt_start, st.order, st.mrow, st.n_free)
+    pair_id, rows, cols = SK.ba_pair_script(st.pt_start, st.order, st.mrow, st.n_free)
     assert len(ref) > 100 and np.array_equal(np.c_[rows[pair_id], cols[pair_id]], ref)
     assert len(np.unique(rows * st.n_free + cols)) == len(rows) == len(np.unique(ref[:, 0] * st.n_free + ref[:, 1]))
 

@@ -44,7 +44,8 @@ from ..geometry import se3
 from .bundle_edgelets import EdgeletLM
 from .bundle_gauge import ScaleGauge
 from .bundle_inputs import EdgeletBundleInput, _checked_inputs, _Inputs
-from .bundle_kernels import ba_backsub, ba_linearise, ba_residuals, ba_robust_cost, ba_schur, tukey_cutoff_sq
+from .bundle_kernels import ba_linearise, ba_residuals, ba_robust_cost, tukey_cutoff_sq
+from .bundle_schur_kernels import ba_backsub, ba_schur
 from .bundle_structure import BundleStructure, ReducedSolver, build_structure, seen_twice
 
 AbortFlag = threading.Event | Callable[[], bool] | None
@@ -198,9 +199,7 @@ class Bundle:
         ba_residuals(cam, s.P, s.X, st.mcam, st.mpt, s.uv, s.inv_sigma, s.use, s.err, s.e2, s.bad)
         s.edg.residuals(s.P)
         s.c2 = c2 = tukey_cutoff_sq(*s.joint_errors(), self.cfg.min_tukey_sigma)
-        cost = ba_linearise(
-            cam, s.P, s.X, st.mcam, st.mpt, s.uv, s.inv_sigma, s.use, c2, st.cam_row, s.U, s.ea, s.V, s.eb, s.W, s.live
-        )
+        cost = ba_linearise(cam, s.P, s.X, st.mcam, st.mpt, s.uv, s.inv_sigma, s.use, c2, st.cam_row, *s.normal, s.live)
         cost += s.edg.linearise(c2, (s.U, s.ea))
         phases["linearise"] += time.perf_counter() - t
         return cost
@@ -254,9 +253,7 @@ class Bundle:
         does not factorise."""
         st = s.st
         t = time.perf_counter()
-        ba_schur(
-            s.U, s.ea, s.V, s.eb, s.W, s.live, lam, st.mrow, st.pt_start, st.order, st.pair_id, s.blocks, s.rhs, s.Vinv
-        )
+        ba_schur(*s.normal, s.live, lam, st.mrow, st.pt_start, st.order, st.pair_id, s.blocks, s.rhs, s.Vinv)
         s.edg.schur(lam, s.blocks, s.rhs)
         t1 = time.perf_counter()
         phases["schur"] += t1 - t
@@ -270,7 +267,7 @@ class Bundle:
             return None
         t2 = time.perf_counter()
         phases["solve"] += t2 - t1
-        dpts = ba_backsub(s.Vinv, s.eb, s.W, s.live, st.mrow, st.pt_start, st.order, dcam)
+        dpts = ba_backsub(s.Vinv, s.eb, s.A, s.B, s.live, st.mrow, st.pt_start, st.order, dcam)
         dedg = s.edg.backsub(dcam)
         phases["backsub"] += time.perf_counter() - t2
         return dcam, dpts, dedg
@@ -349,11 +346,10 @@ class _LMState:
         self.e2 = np.zeros(kc)
         self.bad = np.zeros(kc, bool)
         self.live = np.zeros(kc, bool)
-        self.U = np.zeros((nf, 6, 6))
-        self.ea = np.zeros((nf, 6))
-        self.V = np.zeros((mc, 3, 3))
-        self.eb = np.zeros((mc, 3))
-        self.W = np.zeros((kc, 6, 3))
+        self.U, self.ea = np.zeros((nf, 6, 6)), np.zeros((nf, 6))
+        self.V, self.eb = np.zeros((mc, 3, 3)), np.zeros((mc, 3))
+        self.A, self.B = np.zeros((kc, 2, 6)), np.zeros((kc, 2, 3))  # the weighted Jacobian rows, W = AᵀB
+        self.normal = (self.U, self.ea, self.V, self.eb, self.A, self.B)  # the points' blocks, in the kernels' order
         self.blocks = np.zeros((len(st.pair_rows), 6, 6))
         self.rhs = np.zeros(6 * nf)
         self.Vinv = np.zeros((mc, 3, 3))

@@ -14,10 +14,9 @@ the Tukey biweight and accumulated:
   camera-edgelet block W. ε is predicted − measured, the points' error measured − predicted; the gradients take
   −ε so that one step solves both.
 * ``ba_edgelet_schur``: S −= Σ W V*⁻¹ Wᵀ over every camera pair that shares an edgelet and the reduced
-  right-hand side, V* the diagonal × (1 + λ); it continues the walk of ``ba_pair_script`` after the points. W has
-  rank 2 (two distances per measurement), so each pair's block is formed through a 2×2 product, not W's 6×4
-  (global BA on desk_bricks' map: the edgelets' Schur share ~22 % less arithmetic).
-* ``ba_edgelet_backsub``: the edgelet updates δμ_E = V*⁻¹ (ε_b − Σ Wᵀ δμ_K);
+  right-hand side, V* the diagonal × (1 + λ); it continues the walk of ``ba_pair_script`` after the points, with
+  the points' ``bundle_schur_kernels.eliminate`` (W has rank 2 for both: two distances per measurement).
+* the edgelet updates δμ_E = V*⁻¹ (ε_b − Σ Wᵀ δμ_K) are ``bundle_schur_kernels.ba_backsub``'s, as for points;
   ``ptam.edgelet.edgelet_ba_kernels.frames_updated`` applies them to the frames (``Edgelets.updated``).
 
 Per Agility §8 every distance has unit (one-pixel) variance. The numpy references are in
@@ -34,6 +33,7 @@ from numba import njit
 from ..camera.camproj_kernels import project, project_jac
 from ..edgelet.edgelet_ba_kernels import measurement_rows, sample_in_camera
 from .bundle_kernels import clear_residual
+from .bundle_schur_kernels import eliminate
 
 
 @njit(nogil=True, cache=True, inline="always")
@@ -186,82 +186,11 @@ def inv_sym4(M, lam, out, L, Li):
 
 @njit(nogil=True, cache=True)
 def ba_edgelet_schur(V, eb, A, B, live, lam, mrow, e_start, order, pair_id, blocks, rhs, Vinv):
-    """Subtract the edgelets' W V*⁻¹ Wᵀ from the reduced system's ``blocks`` and W V*⁻¹ ε_b from ``rhs``, with the
-    pair walk of ``bundle_kernels.eliminate`` (``pair_id``: the edgelets' part of ``ba_pair_script``'s walk); V*⁻¹
-    (E, 4, 4) is kept for the back-substitution. A measurement's W = AᵀB (6×4) has rank 2, its two distances: a
-    camera pair's block is A_aᵀ (B_a V*⁻¹ B_bᵀ) A_b, 112 multiply-adds against 144 for W_a V*⁻¹ W_bᵀ."""
+    """Subtract the edgelets' W V*⁻¹ Wᵀ from the reduced system's ``blocks`` and W V*⁻¹ ε_b from ``rhs``
+    (``bundle_schur_kernels.eliminate``, as for points; ``pair_id``: the edgelets' part of ``ba_pair_script``'s walk);
+    V*⁻¹ (E, 4, 4) is kept for the back-substitution (``bundle_schur_kernels.ba_backsub``)."""
     L = np.zeros((4, 4))
     Li = np.zeros((4, 4))
     for e in range(e_start.shape[0] - 1):
         inv_sym4(V[e], lam, Vinv[e], L, Li)
-    Q = np.empty((2, 4))
-    D = np.empty((6, 2))
-    q = 0
-    for e in range(e_start.shape[0] - 1):
-        Vi = Vinv[e]
-        for ia in range(e_start[e], e_start[e + 1]):
-            ka = order[ia]
-            ra = mrow[ka]
-            if ra < 0:
-                continue
-            if live[ka]:
-                for s in range(2):
-                    for b in range(4):
-                        Q[s, b] = B[ka, s, 0] * Vi[0, b] + B[ka, s, 1] * Vi[1, b] + B[ka, s, 2] * Vi[2, b]
-                        Q[s, b] += B[ka, s, 3] * Vi[3, b]
-                q0 = Q[0, 0] * eb[e, 0] + Q[0, 1] * eb[e, 1] + Q[0, 2] * eb[e, 2] + Q[0, 3] * eb[e, 3]
-                q1 = Q[1, 0] * eb[e, 0] + Q[1, 1] * eb[e, 1] + Q[1, 2] * eb[e, 2] + Q[1, 3] * eb[e, 3]
-                for a in range(6):
-                    rhs[6 * ra + a] -= A[ka, 0, a] * q0 + A[ka, 1, a] * q1
-                _sub_pair(blocks, ra, Q, A, B, ka, ka, D)
-            for ib in range(e_start[e], ia):
-                kb = order[ib]
-                if mrow[kb] < 0:
-                    continue
-                pid = pair_id[q]
-                q += 1
-                if live[ka] and live[kb]:
-                    _sub_pair(blocks, pid, Q, A, B, ka, kb, D)
-
-
-@njit(nogil=True, cache=True, inline="always")
-def _sub_pair(blocks, pid, Q, A, B, ka, kb, D):
-    """blocks[pid] −= A_kaᵀ (Q B_kbᵀ) A_kb, Q = B_ka V*⁻¹ (2×4)."""
-    c00 = Q[0, 0] * B[kb, 0, 0] + Q[0, 1] * B[kb, 0, 1] + Q[0, 2] * B[kb, 0, 2] + Q[0, 3] * B[kb, 0, 3]
-    c01 = Q[0, 0] * B[kb, 1, 0] + Q[0, 1] * B[kb, 1, 1] + Q[0, 2] * B[kb, 1, 2] + Q[0, 3] * B[kb, 1, 3]
-    c10 = Q[1, 0] * B[kb, 0, 0] + Q[1, 1] * B[kb, 0, 1] + Q[1, 2] * B[kb, 0, 2] + Q[1, 3] * B[kb, 0, 3]
-    c11 = Q[1, 0] * B[kb, 1, 0] + Q[1, 1] * B[kb, 1, 1] + Q[1, 2] * B[kb, 1, 2] + Q[1, 3] * B[kb, 1, 3]
-    for a in range(6):
-        D[a, 0] = A[ka, 0, a] * c00 + A[ka, 1, a] * c10
-        D[a, 1] = A[ka, 0, a] * c01 + A[ka, 1, a] * c11
-    for a in range(6):
-        d0 = D[a, 0]
-        d1 = D[a, 1]
-        for b in range(6):
-            blocks[pid, a, b] -= d0 * A[kb, 0, b] + d1 * A[kb, 1, b]
-
-
-@njit(nogil=True, cache=True)
-def ba_edgelet_backsub(Vinv, eb, A, B, live, mrow, e_start, order, dcam):
-    """Edgelet updates δμ_E = V*⁻¹ (ε_b − Σ_j W_jᵀ δμ_j) (E, 4), W_jᵀ δμ_j = B_jᵀ (A_j δμ_j) (as
-    ``bundle_kernels.ba_backsub`` for points)."""
-    n = e_start.shape[0] - 1
-    de = np.zeros((n, 4))
-    v = np.empty(4)
-    for e in range(n):
-        for b in range(4):
-            v[b] = eb[e, b]
-        for i in range(e_start[e], e_start[e + 1]):
-            k = order[i]
-            r = mrow[k]
-            if r < 0 or not live[k]:
-                continue
-            for s in range(2):
-                t = 0.0
-                for a in range(6):
-                    t += A[k, s, a] * dcam[6 * r + a]
-                for b in range(4):
-                    v[b] -= B[k, s, b] * t
-        for a in range(4):
-            de[e, a] = Vinv[e, a, 0] * v[0] + Vinv[e, a, 1] * v[1] + Vinv[e, a, 2] * v[2] + Vinv[e, a, 3] * v[3]
-    return de
+    eliminate(Vinv, eb, A, B, live, mrow, e_start, order, pair_id, blocks, rhs)

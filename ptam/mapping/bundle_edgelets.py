@@ -30,7 +30,6 @@ from ..camera.model import CameraModel
 from ..edgelet import Edgelets, perp
 from ..edgelet.edgelet_ba_kernels import frames_updated
 from .bundle_edgelet_kernels import (
-    ba_edgelet_backsub,
     ba_edgelet_linearise,
     ba_edgelet_residuals,
     ba_edgelet_rows,
@@ -38,6 +37,7 @@ from .bundle_edgelet_kernels import (
 )
 from .bundle_inputs import EdgeletBundleInput
 from .bundle_kernels import ba_robust_cost
+from .bundle_schur_kernels import ba_backsub
 from .bundle_structure import BundleStructure, EdgeletStructure, seen_twice
 
 
@@ -166,7 +166,7 @@ class EdgeletLM:
         if not self.n:
             return np.zeros((0, 4))
         es = self.es
-        return ba_edgelet_backsub(self.Vinv, self.eb, self.A, self.B, self.live, es.mrow, es.e_start, es.order, dcam)
+        return ba_backsub(self.Vinv, self.eb, self.A, self.B, self.live, es.mrow, es.e_start, es.order, dcam)
 
     def trial(self, P_new: np.ndarray, de: np.ndarray, c2: float) -> tuple[np.ndarray | None, float]:
         """The frames after the step ``de`` and their cost at ``P_new`` on the measurements live at linearisation."""

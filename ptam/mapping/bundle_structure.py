@@ -15,7 +15,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from ..errors import InputError
-from .bundle_kernels import ba_pair_script
+from .bundle_schur_kernels import ba_pair_script
 from .bundle_solve_kernels import ba_envelope, ba_envelope_solve
 
 

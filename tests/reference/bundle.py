@@ -67,6 +67,13 @@ def ba_linearise_ref(camera, poses, points, mcam, mpt, uv, inv_sigma, use, c2, c
     return U, ea, V, eb, W, live, cost
 
 
+def w_blocks(A, B, live, mrow):
+    """W = AᵀB (M, 6, d) from the kernels' weighted rows A (M, 2, 6), B (M, 2, d), zero where the measurement is not
+    live or its camera is fixed: the references' W."""
+    on = (live & (mrow >= 0))[:, None, None]
+    return np.where(on, np.einsum("ksa,ksb->kab", A, B), 0.0)
+
+
 def ba_schur_ref(U, ea, V, eb, W, live, lam, mrow, mpt):
     """Dense S = U* − W V*⁻¹ Wᵀ, rhs = ε_a − W V*⁻¹ ε_b and V*⁻¹ by explicit (6N × 3M) matrices."""
     nf, m = U.shape[0], V.shape[0]
