@@ -184,6 +184,7 @@ class Bundle:
                 lm.accept()
                 s.P, s.X, F = step
                 s.edg.accept(F)
+            s.residuals_current = step is not None  # the accepted trial's residuals cover every live measurement
             s.outlier |= flagged
             s.use &= ~flagged
             s.edg.retire(eflagged)
@@ -196,7 +197,8 @@ class Bundle:
         blocks; returns the cost (``s.live`` marks the measurements the Tukey weight keeps)."""
         cam, st = self._cam, s.st
         t = time.perf_counter()
-        ba_residuals(cam, s.P, s.X, st.mcam, st.mpt, s.uv, s.inv_sigma, s.use, s.err, s.e2, s.bad)
+        if not s.residuals_current:  # measurements in use are a subset of the accepted trial's, if any
+            ba_residuals(cam, s.P, s.X, st.mcam, st.mpt, s.uv, s.inv_sigma, s.use, s.err, s.e2, s.bad)
         s.edg.residuals(s.P)
         s.c2 = c2 = tukey_cutoff_sq(*s.joint_errors(), self.cfg.min_tukey_sigma)
         cost = ba_linearise(cam, s.P, s.X, st.mcam, st.mpt, s.uv, s.inv_sigma, s.use, c2, st.cam_row, *s.normal, s.live)
@@ -354,6 +356,7 @@ class _LMState:
         self.rhs = np.zeros(6 * nf)
         self.Vinv = np.zeros((mc, 3, 3))
         self.c2 = np.nan
+        self.residuals_current = False  # err, e2, bad hold the points' residuals at (P, X) for every measurement in use
         self.gauge: ScaleGauge | None = None
 
     def hold_underdetermined(self) -> None:
