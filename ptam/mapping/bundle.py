@@ -351,13 +351,17 @@ class _LMState:
         self.U, self.ea = np.zeros((nf, 6, 6)), np.zeros((nf, 6))
         self.V, self.eb = np.zeros((mc, 3, 3)), np.zeros((mc, 3))
         self.A, self.B = np.zeros((kc, 2, 6)), np.zeros((kc, 2, 3))  # the weighted Jacobian rows, W = AᵀB
-        self.normal = (self.U, self.ea, self.V, self.eb, self.A, self.B)  # the points' blocks, in the kernels' order
         self.blocks = np.zeros((len(st.pair_rows), 6, 6))
         self.rhs = np.zeros(6 * nf)
         self.Vinv = np.zeros((mc, 3, 3))
         self.c2 = np.nan
         self.residuals_current = False  # err, e2, bad hold the points' residuals at (P, X) for every measurement in use
         self.gauge: ScaleGauge | None = None
+
+    @property
+    def normal(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The points' blocks U, ε_a, V, ε_b and weighted rows A, B, in the kernels' argument order."""
+        return self.U, self.ea, self.V, self.eb, self.A, self.B
 
     def hold_underdetermined(self) -> None:
         """Points (and edgelets) left with fewer than two measurements in the problem are held where they are: one
