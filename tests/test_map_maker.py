@@ -24,3 +24,38 @@ def test_points_the_tracker_keeps_rejecting_become_bad():
     assert bad.sum() == 1
     assert mm.map.n_measurements == n_meas - 1  # its one (source-keyframe) measurement is gone
     assert not (mm.map.meas_pt == rejected).any()
+
+
+def _map_with_wrong_measurements(scene, cfg, n_wrong: int):
+    """Keyframes at frames 0, 20, 40 and their true poses; every point also measured in keyframe 1 where it
+    projects, ``n_wrong`` of those measurements 25 px off. Returns the map and the points measured wrongly."""
+    m = build_gt_map(scene, cfg, kf_every=20, max_points=200, frames=range(0, 41))
+    T = m.kf_T_cw[1]
+    Xc = m.X @ T[:3, :3].T + T[:3, 3]
+    uv = scene.camera.project(Xc)
+    ids = np.flatnonzero(scene.camera.valid(Xc) & scene.camera.in_image(uv, 8.0) & (m.source_kf != 1))
+    uv[ids[:n_wrong], 0] += 25.0
+    m.add_measurements(np.ones(len(ids), np.int64), ids, uv[ids], np.zeros(len(ids), np.int64))
+    return m, ids[:n_wrong]
+
+
+def test_outliers_of_a_ba_stopped_at_the_iteration_limit_wait_for_one_that_converges():
+    scene = load_scene("two_wall_short")
+    n_wrong = 10
+    stopped = {"bundle.max_iterations": 1, "bundle.converge_squared_update": 0.0}
+    for overrides, acted_on in (
+        ({}, True),  # converged: PTAM §6.4, the wrong ones' points (two measurements each) are bad
+        (stopped, False),  # stopped at the limit: its zero weights are provisional
+        ({**stopped, "mapper.unfinished_ba_outliers": True}, True),  # PTAM code acts on them anyway
+    ):
+        cfg = load_config().replace(**overrides)
+        m, wrong = _map_with_wrong_measurements(scene, cfg, n_wrong)
+        n_meas = m.n_measurements
+        mm = MapMaker(scene.camera, cfg, m)
+        mm.bundle_adjust(recent=False)
+        assert mm.stats["global_ba"][-1][2] == (overrides is not stopped and not overrides)
+        bad = np.flatnonzero(mm.map.bad)
+        if acted_on:
+            assert np.array_equal(bad, np.sort(wrong))
+        else:
+            assert len(bad) == 0 and mm.map.n_measurements == n_meas

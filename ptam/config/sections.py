@@ -185,6 +185,7 @@ class MapperConfig:
     bad_point_min_outliers: Annotated[int, Range("[0, inf)")]
     local_ba_min_keyframes: Annotated[int, Range("[1, inf)")]
     outlier_min_good_measurements: Annotated[int, Range("[0, inf)")]
+    unfinished_ba_outliers: bool
 
 
 @dataclass(frozen=True)

@@ -367,13 +367,20 @@ class MapMaker:
             self.full_converged = False
             if recent:
                 self.recent_converged = False
-        if len(res.outliers):
-            self._handle_outliers(used[res.outliers])
-        handle_edgelet_outliers(m, self.cfg, res.edgelet_outliers)
+        if self._outliers_final(res):
+            if len(res.outliers):
+                self._handle_outliers(used[res.outliers])
+            handle_edgelet_outliers(m, self.cfg, res.edgelet_outliers)
         if res.converged:
             self.recent_converged = True
             if not recent:
                 self.full_converged = True
+
+    def _outliers_final(self, res: BundleResult) -> bool:
+        """PTAM §6.4 acts on a BA's outliers; not on those of one stopped at the iteration limit, whose zero weights
+        are provisional (``mapper.unfinished_ba_outliers``): a keyframe handed over at a wrong pose (PTAM §9) is
+        still moving back, and the measurements that move it are the ones flagged."""
+        return res.converged or not res.hit_max_iterations or self.cfg.mapper.unfinished_ba_outliers
 
     def _handle_outliers(self, outliers: np.ndarray) -> None:
         """PTAM code ``BundleAdjust``: a point is bad when its root measurement or one of its last two good
