@@ -1,5 +1,7 @@
 """MapMaker pieces on a ground-truth map: tracker feedback marks bad points (PTAM code HandleBadPoints)."""
 
+import dataclasses
+
 import numpy as np
 
 from ptam.bench.gt_map import build_gt_map
@@ -27,8 +29,8 @@ def test_points_the_tracker_keeps_rejecting_become_bad():
 
 
 def _map_with_wrong_measurements(scene, cfg, n_wrong: int):
-    """Keyframes at frames 0, 20, 40 and their true poses; every point also measured in keyframe 1 where it
-    projects, ``n_wrong`` of those measurements 25 px off. Returns the map and the points measured wrongly."""
+    """Keyframes at frames 0, 20, 40 and their true poses but keyframe 2's, 1 mm off; every point also measured in
+    keyframe 1 where it projects, ``n_wrong`` of those 25 px off. Returns the map and the points measured wrongly."""
     m = build_gt_map(scene, cfg, kf_every=20, max_points=200, frames=range(0, 41))
     T = m.kf_T_cw[1]
     Xc = m.X @ T[:3, :3].T + T[:3, 3]
@@ -36,6 +38,9 @@ def _map_with_wrong_measurements(scene, cfg, n_wrong: int):
     ids = np.flatnonzero(scene.camera.valid(Xc) & scene.camera.in_image(uv, 8.0) & (m.source_kf != 1))
     uv[ids[:n_wrong], 0] += 25.0
     m.add_measurements(np.ones(len(ids), np.int64), ids, uv[ids], np.zeros(len(ids), np.int64))
+    T2 = m.kf_T_cw[2].copy()
+    T2[0, 3] += 0.001  # 1 mm: a first step to take
+    m.set_poses([2], T2[None])
     return m, ids[:n_wrong]
 
 
@@ -48,14 +53,34 @@ def test_outliers_of_a_ba_stopped_at_the_iteration_limit_wait_for_one_that_conve
         (stopped, False),  # stopped at the limit: its zero weights are provisional
         ({**stopped, "mapper.unfinished_ba_outliers": True}, True),  # PTAM code acts on them anyway
     ):
-        cfg = load_config().replace(**overrides)
-        m, wrong = _map_with_wrong_measurements(scene, cfg, n_wrong)
-        n_meas = m.n_measurements
-        mm = MapMaker(scene.camera, cfg, m)
-        mm.bundle_adjust(recent=False)
+        bad, n_meas, mm = _adjusted_once(scene, load_config().replace(**overrides), n_wrong, wrong_out := [])
         assert mm.stats["global_ba"][-1][2] == (overrides is not stopped and not overrides)
-        bad = np.flatnonzero(mm.map.bad)
         if acted_on:
-            assert np.array_equal(bad, np.sort(wrong))
+            assert np.array_equal(bad, np.sort(wrong_out[0]))
         else:
             assert len(bad) == 0 and mm.map.n_measurements == n_meas
+
+
+def test_outliers_of_a_ba_that_stopped_without_moving_are_final():
+    """Stopped at the limit with every step rejected, the BA ends where it began: the next one would repeat it."""
+    scene = load_scene("two_wall_short")
+    cfg = load_config().replace(**{"bundle.max_iterations": 1, "bundle.converge_squared_update": 0.0})
+
+    def unmoved(adjust):
+        return lambda *a, **k: dataclasses.replace(adjust(*a, **k), accepted=0)
+
+    bad, _, mm = _adjusted_once(scene, cfg, 10, wrong := [], wrap=unmoved)
+    assert not mm.stats["global_ba"][-1][2]
+    assert np.array_equal(bad, np.sort(wrong[0]))
+
+
+def _adjusted_once(scene, cfg, n_wrong: int, wrong_out: list, wrap=None):
+    """One global BA of the map of ``_map_with_wrong_measurements``: (bad points, measurements before, mapper)."""
+    m, wrong = _map_with_wrong_measurements(scene, cfg, n_wrong)
+    wrong_out.append(wrong)
+    n_meas = m.n_measurements
+    mm = MapMaker(scene.camera, cfg, m)
+    if wrap is not None:
+        mm.bundle.adjust = wrap(mm.bundle.adjust)
+    mm.bundle_adjust(recent=False)
+    return np.flatnonzero(mm.map.bad), n_meas, mm

@@ -377,10 +377,10 @@ class MapMaker:
                 self.full_converged = True
 
     def _outliers_final(self, res: BundleResult) -> bool:
-        """PTAM §6.4 acts on a BA's outliers; not on those of one stopped at the iteration limit, whose zero weights
-        are provisional (``mapper.unfinished_ba_outliers``): a keyframe handed over at a wrong pose (PTAM §9) is
-        still moving back, and the measurements that move it are the ones flagged."""
-        return res.converged or not res.hit_max_iterations or self.cfg.mapper.unfinished_ba_outliers
+        """PTAM §6.4; not a BA stopped at the iteration limit while moving (``mapper.unfinished_ba_outliers``): as a
+        keyframe handed over at a wrong pose (PTAM §9) moves back, the measurements moving it are the flagged ones."""
+        unfinished = res.hit_max_iterations and not res.converged and res.accepted > 0
+        return not unfinished or self.cfg.mapper.unfinished_ba_outliers
 
     def _handle_outliers(self, outliers: np.ndarray) -> None:
         """PTAM code ``BundleAdjust``: a point is bad when its root measurement or one of its last two good
