@@ -17,11 +17,13 @@ keyframe positions.
 from __future__ import annotations
 
 import argparse
+import sys
 
 import numpy as np
 
 from ptam.bench.accuracy import run_accuracy
 from ptam.config import load_config
+from ptam.errors import PtamError
 from ptam.eval.ate import ate
 from ptam.eval.tum_io import read_tum
 from ptam.geometry import se3
@@ -80,11 +82,26 @@ def _keyframe_errors(log: dict, t_gt: np.ndarray, T_gt: np.ndarray, cfg) -> tupl
     return lines, stuck
 
 
+def _positive(text: str) -> int:
+    n = int(text)
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {n}")
+    return n
+
+
 def main() -> None:
+    try:
+        _run()
+    except PtamError as e:  # a bad scene or --set: one line, exit status 2 (as ptam's command line)
+        print(f"keyframe_poses: {e}", file=sys.stderr)
+        sys.exit(2)
+
+
+def _run() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scene", default="desk_corner_blur")
     ap.add_argument("--mode", default="realtime", choices=[m.value for m in RunMode])
-    ap.add_argument("--runs", type=int, default=20)
+    ap.add_argument("--runs", type=_positive, default=20)
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="config override")
     args = ap.parse_args()
     cfg = load_config(None, args.set)
