@@ -25,6 +25,7 @@ from ptam.bench.accuracy import run_accuracy
 from ptam.config import load_config
 from ptam.errors import PtamError
 from ptam.eval.ate import ate
+from ptam.eval.correctness import rotation_errors_deg
 from ptam.eval.tum_io import read_tum
 from ptam.geometry import se3
 from ptam.mapping.map_maker import MapMaker
@@ -46,10 +47,6 @@ def _record_handovers(log: dict) -> None:
     MapMaker.add_keyframe = recorded
 
 
-def _rotation_deg(R_a: np.ndarray, R_b: np.ndarray) -> float:
-    return float(np.degrees(np.arccos(np.clip((np.trace(R_a.T @ R_b) - 1.0) / 2.0, -1.0, 1.0))))
-
-
 def _keyframe_errors(log: dict, t_gt: np.ndarray, T_gt: np.ndarray, cfg) -> tuple[list[str], bool]:
     """One line per keyframe handed over off by more than the criteria; whether a local BA run with one of them
     as the newest keyframe stopped unconverged (at the iteration limit, or aborted by a newer keyframe)."""
@@ -64,7 +61,7 @@ def _keyframe_errors(log: dict, t_gt: np.ndarray, T_gt: np.ndarray, cfg) -> tupl
 
     def error(T_wc: np.ndarray, k: int) -> tuple[float, float]:
         position = 1e3 * float(np.linalg.norm(fit.aligned(T_wc[None, :3, 3])[0] - gt[k, :3, 3]))
-        return position, _rotation_deg(fit.R @ T_wc[:3, :3], gt[k, :3, :3])
+        return position, float(rotation_errors_deg(gt[k, :3, :3], T_wc[:3, :3], fit.R))
 
     lines, stuck = [], False
     for t, T_wc in log["handed"]:
@@ -124,8 +121,7 @@ def _run() -> None:
     print(
         f"{args.scene} {args.mode}: {off_runs} of {args.runs} runs handed over a keyframe off by more than "
         f"{cfg.eval.correct_mm} mm or {cfg.eval.correct_deg}°, {stuck_runs} with a local BA after one that did not "
-        f"converge; glitches median {np.median(glitches):.0f}, "
-        f"max {max(glitches)}"
+        f"converge; glitches median {np.median(glitches):.0f}, max {max(glitches)}"
     )
 
 

@@ -46,17 +46,17 @@ def _map_with_wrong_measurements(scene, cfg, n_wrong: int):
 
 def test_outliers_of_a_ba_stopped_at_the_iteration_limit_wait_for_one_that_converges():
     scene = load_scene("two_wall_short")
-    n_wrong = 10
     stopped = {"bundle.max_iterations": 1, "bundle.converge_squared_update": 0.0}
-    for overrides, acted_on in (
-        ({}, True),  # converged: PTAM §6.4, the wrong ones' points (two measurements each) are bad
-        (stopped, False),  # stopped at the limit: its zero weights are provisional
-        ({**stopped, "mapper.unfinished_ba_outliers": True}, True),  # PTAM code acts on them anyway
+    for overrides, converged, acted_on in (
+        ({}, True, True),  # converged: PTAM §6.4, the wrong ones' points (two measurements each) are bad
+        (stopped, False, False),  # stopped at the limit: its zero weights are provisional
+        ({**stopped, "mapper.unfinished_ba_outliers": True}, False, True),  # PTAM code acts on them anyway
     ):
-        bad, n_meas, mm = _adjusted_once(scene, load_config().replace(**overrides), n_wrong, wrong_out := [])
-        assert mm.stats["global_ba"][-1][2] == (overrides is not stopped and not overrides)
+        mm, wrong, n_meas = _adjusted_once(scene, load_config().replace(**overrides))
+        assert mm.stats["global_ba"][-1][2] == converged
+        bad = np.flatnonzero(mm.map.bad)
         if acted_on:
-            assert np.array_equal(bad, np.sort(wrong_out[0]))
+            assert np.array_equal(bad, np.sort(wrong))
         else:
             assert len(bad) == 0 and mm.map.n_measurements == n_meas
 
@@ -69,18 +69,18 @@ def test_outliers_of_a_ba_that_stopped_without_moving_are_final():
     def unmoved(adjust):
         return lambda *a, **k: dataclasses.replace(adjust(*a, **k), accepted=0)
 
-    bad, _, mm = _adjusted_once(scene, cfg, 10, wrong := [], wrap=unmoved)
+    mm, wrong, _ = _adjusted_once(scene, cfg, wrap=unmoved)
     assert not mm.stats["global_ba"][-1][2]
-    assert np.array_equal(bad, np.sort(wrong[0]))
+    assert np.array_equal(np.flatnonzero(mm.map.bad), np.sort(wrong))
 
 
-def _adjusted_once(scene, cfg, n_wrong: int, wrong_out: list, wrap=None):
-    """One global BA of the map of ``_map_with_wrong_measurements``: (bad points, measurements before, mapper)."""
+def _adjusted_once(scene, cfg, n_wrong: int = 10, wrap=None):
+    """One global BA of the map of ``_map_with_wrong_measurements``: (mapper, the points measured wrongly, the
+    measurement count before). ``wrap``: applied to the mapper's ``Bundle.adjust``."""
     m, wrong = _map_with_wrong_measurements(scene, cfg, n_wrong)
-    wrong_out.append(wrong)
     n_meas = m.n_measurements
     mm = MapMaker(scene.camera, cfg, m)
     if wrap is not None:
         mm.bundle.adjust = wrap(mm.bundle.adjust)
     mm.bundle_adjust(recent=False)
-    return np.flatnonzero(mm.map.bad), n_meas, mm
+    return mm, wrong, n_meas
