@@ -84,3 +84,45 @@ def _adjusted_once(scene, cfg, n_wrong: int = 10, wrap=None):
         mm.bundle.adjust = wrap(mm.bundle.adjust)
     mm.bundle_adjust(recent=False)
     return mm, wrong, n_meas
+
+
+def _map_with_panorama_keyframe(scene, cfg, offset_m: float):
+    """Keyframes at frames 0, 20, 40 at their true poses, keyframe 1 flagged panorama and ``offset_m`` off along x
+    (a pose tracked under [R|0]); every point also measured, exactly, in keyframe 1 where it projects."""
+    m = build_gt_map(scene, cfg, kf_every=20, max_points=200, frames=range(0, 41))
+    T = m.kf_T_cw[1].copy()
+    Xc = m.X @ T[:3, :3].T + T[:3, 3]
+    uv = scene.camera.project(Xc)
+    ids = np.flatnonzero(scene.camera.valid(Xc) & scene.camera.in_image(uv, 8.0) & (m.source_kf != 1))
+    m.add_measurements(np.ones(len(ids), np.int64), ids, uv[ids], np.zeros(len(ids), np.int64))
+    m.keyframes[1] = dataclasses.replace(m.keyframes[1], panorama=True)
+    T[0, 3] += offset_m
+    m.set_poses([1], T[None])
+    return m
+
+
+def _centre_error(C, C_true) -> float:
+    """Keyframe 1's centre error (m) in the map's scale measured by keyframes 0 (fixed) and 2."""
+    s = np.linalg.norm(C_true[2] - C_true[0]) / np.linalg.norm(C[2] - C[0])
+    return float(np.linalg.norm(C_true[0] + s * (C[1] - C[0]) - C_true[1]))
+
+
+def test_a_panorama_keyframe_that_measures_3d_points_is_adjusted_with_them():
+    """Gauglitz §5.2 adjusts SfM groups; a panorama keyframe measuring enough 3-D points is tied to its group and
+    is adjusted with it (``model_selection.adjust_panorama_keyframes``), one with fewer keeps its pose."""
+    scene = load_scene("two_wall_short")
+    for adjust, min_points, moved in ((True, 10, True), (False, 10, False), (True, 10**6, False)):
+        cfg = load_config().replace(
+            **{"model_selection.adjust_panorama_keyframes": adjust, "model_selection.min_sfm_points": min_points}
+        )
+        m = _map_with_panorama_keyframe(scene, cfg, 0.005)  # 5 mm at 3 m: about 1 px
+        start = m.kf_T_cw[1].copy()
+        mm = MapMaker(scene.camera, cfg, m)
+        mm.bundle_adjust(recent=False)
+        assert mm.stats["global_ba"][-1][2]  # converged
+        error_mm = 1e3 * _centre_error(mm.map.camera_centres, scene.poses_T_wc[[0, 20, 40], :3, 3])
+        if moved:
+            assert error_mm < 0.5  # measured 0.005 mm
+        else:
+            # Held: its rotation as tracked, its centre as far off as before (the BA's scale hold moved it a little).
+            assert np.array_equal(mm.map.kf_T_cw[1][:3, :3], start[:3, :3]) and error_mm > 3.0

@@ -20,6 +20,7 @@ class ModelSelectionConfig:
     turn_keyframes_unspaced: bool
     keyframe_by_angle: bool
     rays_gain_depth: bool
+    adjust_panorama_keyframes: bool
     initialisation_free: bool
     rotation_check_method: EssentialMethod
     rotation_check_max_matches: Annotated[int, Range("[5, inf)")]

@@ -31,7 +31,7 @@ from .epipolar import epipolar_matches, unit_plane_corners
 from .gauge import hold_scale
 from .local_ba import local_sets
 from .normals import NormalEstimator
-from .panorama import add_ray_points, free_candidates, new_point_levels, triangulate_rays
+from .panorama import add_ray_points, free_candidates, held_panorama_keyframes, new_point_levels, triangulate_rays
 from .refind import refind_points
 
 if TYPE_CHECKING:
@@ -310,8 +310,8 @@ class MapMaker:
         n = m.n_keyframes
         fixed = np.zeros(n, bool)
         fixed[0] = True
-        # Gauglitz et al. §5.2 adjusts SfM groups only: panorama keyframes keep their poses, rays are not used.
-        fixed |= KeyFrame.panorama_flags(m.keyframes)
+        # Gauglitz et al. §5.2 adjusts SfM groups only: rays are not used, rays-only panorama keyframes stay put.
+        fixed |= held_panorama_keyframes(m, self.cfg.model_selection)
         use = ~m.ray[m.meas_pt]
         if recent and n < self.cfg.mapper.local_ba_min_keyframes:
             # Small maps: global adjustment covers everything (PTAM code).
