@@ -86,10 +86,13 @@ def _adjusted_once(scene, cfg, n_wrong: int = 10, wrap=None):
     return mm, wrong, n_meas
 
 
-def _map_with_panorama_keyframe(scene, cfg, offset_m: float):
+def _map_with_panorama_keyframe(scene, cfg, offset_m: float, gained_depth: bool):
     """Keyframes at frames 0, 20, 40 at their true poses, keyframe 1 flagged panorama and ``offset_m`` off along x
-    (a pose tracked under [R|0]); every point also measured, exactly, in keyframe 1 where it projects."""
+    (a pose tracked under [R|0]); every point also measured, exactly, in keyframe 1 where it projects. Keyframe 1's
+    own points are its rays that gained depth, or (``gained_depth`` false) bad: it then measures old points alone."""
     m = build_gt_map(scene, cfg, kf_every=20, max_points=200, frames=range(0, 41))
+    if not gained_depth:
+        m.mark_bad(np.flatnonzero(m.source_kf == 1))
     T = m.kf_T_cw[1].copy()
     Xc = m.X @ T[:3, :3].T + T[:3, 3]
     uv = scene.camera.project(Xc)
@@ -108,14 +111,20 @@ def _centre_error(C, C_true) -> float:
 
 
 def test_a_panorama_keyframe_that_measures_3d_points_is_adjusted_with_them():
-    """Gauglitz §5.2 adjusts SfM groups; a panorama keyframe measuring enough 3-D points is tied to its group and
-    is adjusted with it (``model_selection.adjust_panorama_keyframes``), one with fewer keeps its pose."""
+    """Gauglitz §5.2 adjusts SfM groups; a panorama keyframe enough of whose rays gained depth (§4.3) is adjusted
+    with the group (``model_selection.adjust_panorama_keyframes``); one with fewer, or old points alone, keeps its
+    pose."""
     scene = load_scene("two_wall_short")
-    for adjust, min_points, moved in ((True, 10, True), (False, 10, False), (True, 10**6, False)):
+    for adjust, min_points, gained, moved in (
+        (True, 10, True, True),
+        (False, 10, True, False),  # Gauglitz §5.2
+        (True, 10**6, True, False),  # too few of its rays gained depth
+        (True, 10, False, False),  # old points alone (174 of them) do not make it SfM
+    ):
         cfg = load_config().replace(
             **{"model_selection.adjust_panorama_keyframes": adjust, "model_selection.min_sfm_points": min_points}
         )
-        m = _map_with_panorama_keyframe(scene, cfg, 0.005)  # 5 mm at 3 m: about 1 px
+        m = _map_with_panorama_keyframe(scene, cfg, 0.005, gained)  # 5 mm at 3 m: about 1 px
         start = m.kf_T_cw[1].copy()
         mm = MapMaker(scene.camera, cfg, m)
         mm.bundle_adjust(recent=False)

@@ -48,17 +48,19 @@ def free_candidates(m: Map, k: int, level: int, image_cfg, min_dist_px: float) -
 
 def held_panorama_keyframes(m: Map, ms_cfg) -> np.ndarray:
     """The keyframes bundle adjustment holds at their poses as panorama keyframes (Gauglitz et al. §5.2: SfM groups
-    are adjusted, panoramas are not). A panorama keyframe that measures ``min_sfm_points`` 3-D points, enough for
-    [R|t] (§4.2), is adjusted with them (``adjust_panorama_keyframes``): the old points it saw under [R|0] and its
-    rays that gained depth (§4.3) tie it to the SfM group, and held while the group moves its measurements stop
-    agreeing with it (desk_turn_edge: 3000 of 19000 measurements flagged, and a global BA that took three runs of up
-    to 20 iterations, during which an async tracker drifted 20-40 mm on the unadjusted new points). One that sees
-    rays alone has no 3-D measurement to adjust it by."""
+    are adjusted, panoramas are not). A panorama keyframe whose rays gained depth (§4.3: the panorama group becomes
+    SfM), ``min_sfm_points`` of them as for [R|t] (§4.2), is adjusted with the SfM group they joined
+    (``adjust_panorama_keyframes``): held while the group moves, its measurements of those points stop agreeing
+    with it (desk_turn_edge: 3000 of 19000 measurements flagged, and a global BA that took three runs of up to 20
+    iterations, during which an async tracker drifted 20-40 mm on the unadjusted new points). One that measures
+    old points alone stays held: those it saw under [R|0] may crowd a corner of its view (desk_sweep: 10 points in
+    20 x 90 px), which cannot hold a 6-DOF pose, and BA could not factorise."""
     held = KeyFrame.panorama_flags(m.keyframes)
     if not ms_cfg.adjust_panorama_keyframes:
         return held
-    in_3d = ~m.ray[m.meas_pt] & ~m.bad[m.meas_pt]
-    return held & (np.bincount(m.meas_kf[in_3d], minlength=m.n_keyframes) < ms_cfg.min_sfm_points)
+    n = m.n_points_total
+    gained = ~m.ray[:n] & ~m.bad[:n]  # a panorama keyframe's own features are rays until they gain depth
+    return held & (np.bincount(m.source_kf[:n][gained], minlength=m.n_keyframes) < ms_cfg.min_sfm_points)
 
 
 def add_ray_points(m: Map, camera, k: int, level: int, image_cfg, min_dist_px: float) -> np.ndarray:
