@@ -86,10 +86,11 @@ def _adjusted_once(scene, cfg, n_wrong: int = 10, wrap=None):
     return mm, wrong, n_meas
 
 
-def _map_with_panorama_keyframe(scene, cfg, offset_m: float, gained_depth: bool):
+def _map_with_panorama_keyframe(scene, cfg, offset_m: float, gained_depth: bool, old_points: bool = True):
     """Keyframes at frames 0, 20, 40 at their true poses, keyframe 1 flagged panorama and ``offset_m`` off along x
     (a pose tracked under [R|0]); every point also measured, exactly, in keyframe 1 where it projects. Keyframe 1's
-    own points are its rays that gained depth, or (``gained_depth`` false) bad: it then measures old points alone."""
+    own points are its rays that gained depth, or (``gained_depth`` false) bad: it then measures old points alone;
+    ``old_points`` false: keyframes 0 and 2 are panorama keyframes too, so that it measures gained rays alone."""
     m = build_gt_map(scene, cfg, kf_every=20, max_points=200, frames=range(0, 41))
     if not gained_depth:
         m.mark_bad(np.flatnonzero(m.source_kf == 1))
@@ -98,7 +99,8 @@ def _map_with_panorama_keyframe(scene, cfg, offset_m: float, gained_depth: bool)
     uv = scene.camera.project(Xc)
     ids = np.flatnonzero(scene.camera.valid(Xc) & scene.camera.in_image(uv, 8.0) & (m.source_kf != 1))
     m.add_measurements(np.ones(len(ids), np.int64), ids, uv[ids], np.zeros(len(ids), np.int64))
-    m.keyframes[1] = dataclasses.replace(m.keyframes[1], panorama=True)
+    for k in (1,) if old_points else (0, 1, 2):
+        m.keyframes[k] = dataclasses.replace(m.keyframes[k], panorama=True)
     T[0, 3] += offset_m
     m.set_poses([1], T[None])
     return m
@@ -115,16 +117,17 @@ def test_a_panorama_keyframe_that_measures_3d_points_is_adjusted_with_them():
     with the group (``model_selection.adjust_panorama_keyframes``); one with fewer, or old points alone, keeps its
     pose."""
     scene = load_scene("two_wall_short")
-    for adjust, min_points, gained, moved in (
-        (True, 10, True, True),
-        (False, 10, True, False),  # Gauglitz §5.2
-        (True, 10**6, True, False),  # too few of its rays gained depth
-        (True, 10, False, False),  # old points alone (174 of them) do not make it SfM
+    for adjust, min_points, gained, old, moved in (
+        (True, 10, True, True, True),
+        (False, 10, True, True, False),  # Gauglitz §5.2
+        (True, 10**6, True, True, False),  # too few of its rays gained depth
+        (True, 10, False, True, False),  # old points alone (174 of them) do not make it SfM
+        (True, 10, True, False, False),  # gained rays alone (its 16, the others' 174) do not tie it to SfM
     ):
         cfg = load_config().replace(
             **{"model_selection.adjust_panorama_keyframes": adjust, "model_selection.min_sfm_points": min_points}
         )
-        m = _map_with_panorama_keyframe(scene, cfg, 0.005, gained)  # 5 mm at 3 m: about 1 px
+        m = _map_with_panorama_keyframe(scene, cfg, 0.005, gained, old)  # 5 mm at 3 m: about 1 px
         start = m.kf_T_cw[1].copy()
         mm = MapMaker(scene.camera, cfg, m)
         mm.bundle_adjust(recent=False)

@@ -48,19 +48,23 @@ def free_candidates(m: Map, k: int, level: int, image_cfg, min_dist_px: float) -
 
 def held_panorama_keyframes(m: Map, ms_cfg) -> np.ndarray:
     """The keyframes bundle adjustment holds at their poses as panorama keyframes (Gauglitz et al. §5.2: SfM groups
-    are adjusted, panoramas are not). A panorama keyframe whose rays gained depth (§4.3: the panorama group becomes
-    SfM), ``min_sfm_points`` of them as for [R|t] (§4.2), is adjusted with the SfM group they joined
-    (``adjust_panorama_keyframes``): held while the group moves, its measurements of those points stop agreeing
-    with it (desk_turn_edge: 3000 of 19000 measurements flagged, and a global BA that took three runs of up to 20
-    iterations, during which an async tracker drifted 20-40 mm on the unadjusted new points). One that measures
-    old points alone stays held: those it saw under [R|0] may crowd a corner of its view (desk_sweep: 10 points in
-    20 x 90 px), which cannot hold a 6-DOF pose, and BA could not factorise."""
+    are adjusted, panoramas are not). With ``adjust_panorama_keyframes`` a panorama keyframe whose rays gained depth
+    (§4.3: the panorama group becomes SfM) and which measures old points of the SfM group, ``min_sfm_points`` of
+    each as for [R|t] (§4.2), is adjusted with the group: held while the group moves, its measurements of those
+    points stop agreeing with it (desk_turn_edge: 3000 of 19000 measurements flagged, and a global BA that took
+    three runs of up to 20 iterations, during which an async tracker drifted 20-40 mm on the unadjusted new points).
+    Old points alone may crowd a corner of its view (desk_sweep: 10 in 20 x 90 px), which cannot hold a 6-DOF pose:
+    BA could not factorise. Off by default: on a wrongly tracked map (desk_turn_walk followed without the ray check)
+    the freed keyframes let local BA slide without converging, where held ones let it converge."""
     held = KeyFrame.panorama_flags(m.keyframes)
     if not ms_cfg.adjust_panorama_keyframes:
         return held
-    n = m.n_points_total
+    n, k = m.n_points_total, m.n_keyframes
     gained = ~m.ray[:n] & ~m.bad[:n]  # a panorama keyframe's own features are rays until they gain depth
-    return held & (np.bincount(m.source_kf[:n][gained], minlength=m.n_keyframes) < ms_cfg.min_sfm_points)
+    own = np.bincount(m.source_kf[:n][gained], minlength=k)
+    sfm = ~KeyFrame.panorama_flags(m.keyframes)[m.source_kf[m.meas_pt]] & ~m.bad[m.meas_pt]
+    others = np.bincount(m.meas_kf[sfm], minlength=k)
+    return held & ((own < ms_cfg.min_sfm_points) | (others < ms_cfg.min_sfm_points))
 
 
 def add_ray_points(m: Map, camera, k: int, level: int, image_cfg, min_dist_px: float) -> np.ndarray:
