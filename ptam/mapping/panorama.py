@@ -62,7 +62,7 @@ def held_panorama_keyframes(m: Map, ms_cfg) -> np.ndarray:
     n, k = m.n_points_total, m.n_keyframes
     gained = ~m.ray[:n] & ~m.bad[:n]  # a panorama keyframe's own features are rays until they gain depth
     own = np.bincount(m.source_kf[:n][gained], minlength=k)
-    sfm = ~KeyFrame.panorama_flags(m.keyframes)[m.source_kf[m.meas_pt]] & ~m.bad[m.meas_pt]
+    sfm = ~held[m.source_kf[m.meas_pt]] & ~m.bad[m.meas_pt]  # old points: from SfM keyframes
     others = np.bincount(m.meas_kf[sfm], minlength=k)
     return held & ((own < ms_cfg.min_sfm_points) | (others < ms_cfg.min_sfm_points))
 
