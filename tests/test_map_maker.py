@@ -113,9 +113,9 @@ def _centre_error(C, C_true) -> float:
 
 
 def test_a_panorama_keyframe_that_measures_3d_points_is_adjusted_with_them():
-    """Gauglitz §5.2 adjusts SfM groups; a panorama keyframe enough of whose rays gained depth (§4.3) is adjusted
-    with the group (``model_selection.adjust_panorama_keyframes``); one with fewer, or old points alone, keeps its
-    pose."""
+    """Gauglitz §5.2 adjusts SfM groups; with ``model_selection.adjust_panorama_keyframes`` a panorama keyframe
+    enough of whose rays gained depth (§4.3) and which measures enough old points is adjusted with the group; one
+    short of either keeps its pose."""
     scene = load_scene("two_wall_short")
     for adjust, min_points, gained, old, moved in (
         (True, 10, True, True, True),
