@@ -61,6 +61,35 @@ def test_outliers_of_a_ba_stopped_at_the_iteration_limit_wait_for_one_that_conve
             assert len(bad) == 0 and mm.map.n_measurements == n_meas
 
 
+def test_outliers_left_by_a_stopped_ba_are_acted_on_when_the_next_stopped_one_flags_as_many():
+    """Left while each stopped run flags fewer than the last; a run flagging as many is getting nowhere, and left
+    for ever its outliers would have a mapper with nothing else to do repeat it without end."""
+    scene = load_scene("two_wall_short")
+    cfg = load_config().replace(**{"bundle.max_iterations": 1, "bundle.converge_squared_update": 0.0})
+    mm, wrong, n_meas = _adjusted_once(scene, cfg)
+    assert not mm.stats["global_ba"][-1][2] and not mm.map.bad.any() and mm.map.n_measurements == n_meas
+    mm.bundle_adjust(recent=False)  # stopped again, the same 10 measurements flagged
+    assert not mm.stats["global_ba"][-1][2]
+    assert np.array_equal(np.flatnonzero(mm.map.bad), np.sort(wrong))
+
+
+def test_stopped_bas_flagging_fewer_each_time_leave_their_outliers():
+    scene = load_scene("two_wall_short")
+    cfg = load_config().replace(**{"bundle.max_iterations": 1, "bundle.converge_squared_update": 0.0})
+    flagged = iter((10, 9))
+
+    def fewer(adjust):
+        def run(*a, **k):
+            res = adjust(*a, **k)
+            return dataclasses.replace(res, outliers=res.outliers[: next(flagged)])
+
+        return run
+
+    mm, _, n_meas = _adjusted_once(scene, cfg, wrap=fewer)
+    mm.bundle_adjust(recent=False)
+    assert not mm.map.bad.any() and mm.map.n_measurements == n_meas
+
+
 def test_outliers_of_a_ba_that_stopped_without_moving_are_final():
     """Stopped at the limit with every step rejected, the BA ends where it began: the next one would repeat it."""
     scene = load_scene("two_wall_short")

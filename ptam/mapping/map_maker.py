@@ -33,6 +33,7 @@ from .local_ba import local_sets
 from .normals import NormalEstimator
 from .panorama import add_ray_points, free_candidates, held_panorama_keyframes, new_point_levels, triangulate_rays
 from .refind import refind_points
+from .unfinished_outliers import UnfinishedOutliers
 
 if TYPE_CHECKING:
     from ..camera.model import CameraModel
@@ -73,6 +74,7 @@ class MapMaker:
         self._failure_queue: list[tuple[int, int]] = []
         self._new_points: list[tuple[np.ndarray, int]] = []  # (new point ids, next keyframe to search)
         self.feedback = TrackerFeedback(cfg.mapper)  # PTAM code HandleBadPoints
+        self.unfinished_outliers = UnfinishedOutliers(cfg.mapper.unfinished_ba_outliers)
         self.recent_converged = True
         self.full_converged = True
         # Keyframe spacing (PTAM code mdWiggleScaleDepthNormalized): initial baseline / first keyframe's mean depth.
@@ -367,7 +369,7 @@ class MapMaker:
             self.full_converged = False
             if recent:
                 self.recent_converged = False
-        if self._outliers_final(res):
+        if self.unfinished_outliers.final(res, recent):
             if len(res.outliers):
                 self._handle_outliers(used[res.outliers])
             handle_edgelet_outliers(m, self.cfg, res.edgelet_outliers)
@@ -375,12 +377,6 @@ class MapMaker:
             self.recent_converged = True
             if not recent:
                 self.full_converged = True
-
-    def _outliers_final(self, res: BundleResult) -> bool:
-        """PTAM §6.4; not a BA stopped at the iteration limit while moving (``mapper.unfinished_ba_outliers``): as a
-        keyframe handed over at a wrong pose (PTAM §9) moves back, the measurements moving it are the flagged ones."""
-        unfinished = res.hit_max_iterations and not res.converged and res.accepted > 0
-        return not unfinished or self.cfg.mapper.unfinished_ba_outliers
 
     def _handle_outliers(self, outliers: np.ndarray) -> None:
         """PTAM code ``BundleAdjust``: a point is bad when its root measurement or one of its last two good
