@@ -39,6 +39,7 @@ import rerun as rr
 from ..geometry import se3
 from ..map.snapshot import MapSnapshot
 from ..system.priority import lower_priority
+from ..system.run_stats import Latency, RunStats
 from ..vocabulary import PoseModel, TrackingState
 from . import map_entities, palette
 from .augmented import ArFrame, AugmentedView
@@ -90,7 +91,8 @@ class Viewer:
         self.queue: queue.Queue = queue.Queue(maxsize=self.cfg.queue_size)
         self.dropped = 0
         self._frame_time: tuple[int, float] | None = None  # the latest tracked frame's place on the timelines
-        self.observe_ms: list[float] = []  # time spent in the tracker's thread, per frame
+        # Time spent in the tracker's thread per frame, bounded like the run's own timings (hours of live use).
+        self.observe_ms = Latency(RunStats.window)
         self._snapshot: MapSnapshot | None = None
         self._kf_logged: tuple = ()  # KeyFrame objects whose thumbnails are logged
         self._kf_poses = np.zeros((0, 4, 4))
