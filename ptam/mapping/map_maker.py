@@ -312,7 +312,8 @@ class MapMaker:
         n = m.n_keyframes
         fixed = np.zeros(n, bool)
         fixed[0] = True
-        # Gauglitz et al. §5.2 adjusts SfM groups only: rays are not used, panorama keyframes are held.
+        # Gauglitz et al. §5.2 adjusts SfM groups only: rays are not used, panorama keyframes are held unless their
+        # rays gained depth and joined the group (§4.3, held_panorama_keyframes).
         fixed |= held_panorama_keyframes(m, self.cfg.model_selection)
         use = ~m.ray[m.meas_pt]
         if recent and n < self.cfg.mapper.local_ba_min_keyframes:

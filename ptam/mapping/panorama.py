@@ -54,8 +54,7 @@ def held_panorama_keyframes(m: Map, ms_cfg) -> np.ndarray:
     points stop agreeing with it (desk_turn_edge: 3000 of 19000 measurements flagged, and a global BA that took
     three runs of up to 20 iterations, during which an async tracker drifted 20-40 mm on the unadjusted new points).
     Old points alone may crowd a corner of its view (desk_sweep: 10 in 20 x 90 px), which cannot hold a 6-DOF pose:
-    BA could not factorise. Off by default: on a wrongly tracked map (desk_turn_walk followed without the ray check)
-    the freed keyframes let local BA slide without converging, where held ones let it converge."""
+    BA could not factorise."""
     held = KeyFrame.panorama_flags(m.keyframes)
     if not ms_cfg.adjust_panorama_keyframes:
         return held
