@@ -7,10 +7,12 @@ viewer recording to an ``.rrd`` and every output asked for; then SIGINT, and a c
 The scene is rendered once (``ptam.synthetic.ensure_sequence``, into the usual cache) and looped by an ``rgb.txt``
 generated in a temporary folder: the same frames again and again, with increasing timestamps. The camera jumps
 from the end of the path back to its start at every loop, so each loop also exercises a tracking loss and a
-relocalisation. ``ptam run`` runs as a subprocess (the real command line); every ``--report-s`` seconds a row
-shows its resident memory (``/proc/PID/status`` VmRSS), the ``.rrd`` size, the poses already streamed to the
-trajectory file and the map file's size (checkpoints). At the end: frames, frames dropped, and whether the
-trajectory, keyframes, map and recording were all written. Exit status 0 when they were.
+relocalisation. The recording is written as a live camera's is (``viewer.rrd_footer=never``: rerun's chunk
+manifest, which grows in memory for as long as the file is open, is left out). ``ptam run`` runs as a subprocess
+(the real command line); every ``--report-s`` seconds a row shows its resident memory (``/proc/PID/status``
+VmRSS), the ``.rrd`` size, the poses already streamed to the trajectory file and the map file's size
+(checkpoints). At the end: frames, frames dropped, and whether the trajectory, keyframes, map and recording were
+all written. Exit status 0 when they were.
 """
 
 from __future__ import annotations
@@ -163,6 +165,7 @@ def run(args, work: Path) -> int:
     }
     argv = [sys.executable, "-m", "ptam", "run", "--dataset", str(dataset), "--mode", "realtime"]
     argv += [a for key, path in outputs.items() for a in (f"--{key}", str(path))]
+    argv += ["--set", "viewer.rrd_footer=never"]  # an hour-long session is a live camera's, not a dataset's
     argv += [a for o in args.overrides for a in ("--set", o)]
     env = {**os.environ, "DISPLAY": "", "WAYLAND_DISPLAY": ""}
     print(f"soak: {args.scene} looped ({frames} frames queued) for {args.minutes:g} min, outputs in {work}")

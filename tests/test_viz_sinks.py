@@ -1,6 +1,7 @@
 """Where the viewer's data goes: an .rrd file, and the web viewer served on 127.0.0.1 only."""
 
 import socket
+import warnings
 
 import pytest
 from rerun.chunk import RrdReader
@@ -8,8 +9,9 @@ from rerun.chunk import RrdReader
 from ptam.camera import camera_from_dict
 from ptam.config import load_config
 from ptam.errors import InputError
-from ptam.viz.sinks import WebServer, open_recording
+from ptam.viz.sinks import WebServer, open_recording, rrd_footer
 from ptam.viz.viewer import Viewer
+from ptam.vocabulary import RrdFooter
 
 CAMERA = {"model": "pinhole", "width": 640, "height": 480, "fx": 500.0, "fy": 500.0, "cx": 319.5, "cy": 239.5}
 
@@ -56,3 +58,26 @@ def test_web_viewer_listens_on_localhost_only_and_reports_a_busy_port():
     finally:
         server.close()
     assert server.process.returncode is not None and not _listening_addresses(web)
+
+
+def test_a_live_recording_leaves_out_the_chunk_manifest(tmp_path):
+    """rerun's footer, a manifest of every chunk, stays in the sink's memory until the file closes (measured: about
+    12 MB a minute of ptam's logging at 30 Hz): written for videos and datasets, whose length bounds it, left out for
+    a live camera, whose session has no end. Both files hold the data."""
+    cfg = load_config()
+    readers = {}
+    for name, live in (("file.rrd", False), ("live.rrd", True)):
+        recording = open_recording(cfg.viewer, rrd=str(tmp_path / name), live=live)
+        assert recording.targets[0].endswith("adds one)") == live
+        Viewer(recording.stream, camera_from_dict(CAMERA), cfg).close()
+        recording.close()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            readers[live] = RrdReader(tmp_path / name)
+        assert any("no footer" in str(w.message) for w in caught) == live
+        entities = {c.entity_path for c in readers[live].stream().to_chunks()}
+        assert {"/world", "/world/camera/image", "/state"} <= entities
+    assert readers[False].store().summary()
+    with pytest.raises(RuntimeError, match="without footer"):
+        readers[True].store()
+    assert [rrd_footer(c, live) for c in RrdFooter for live in (False, True)] == [True, False, True, True, False, False]

@@ -126,7 +126,8 @@ def _open_recording(args, cfg):
         )
         return None
     try:
-        recording = open_recording(cfg.viewer, spawn=spawn, rrd=args.rrd, serve=args.serve)
+        live = args.camera is not None
+        recording = open_recording(cfg.viewer, spawn=spawn, rrd=args.rrd, serve=args.serve, live=live)
     except PtamError:
         raise
     except Exception as e:  # the viewer is optional; a run is still worth doing without it

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Annotated
 
-from ..vocabulary import ArScene, CalibrationLoss, ChessboardDetector, DistortionModel
+from ..vocabulary import ArScene, CalibrationLoss, ChessboardDetector, DistortionModel, RrdFooter
 from .interval import Range
 
 
@@ -66,6 +66,7 @@ class ViewerConfig:
     web_port: Annotated[int, Range("[1, 65535]")]
     serve_start_timeout_s: Annotated[float, Range("(0, inf)")]
     server_memory_limit: str
+    rrd_footer: RrdFooter
     jpeg_quality: Annotated[int, Range("[0, 100]")]
     ar_image_lossless: bool
     ar_max_fps: Annotated[float, Range("[0, inf)")]

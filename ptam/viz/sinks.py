@@ -22,6 +22,7 @@ from urllib.parse import quote
 import rerun as rr
 
 from ..errors import InputError
+from ..vocabulary import RrdFooter
 
 APPLICATION_ID = "ptam"
 LOCALHOST = "127.0.0.1"
@@ -186,8 +187,17 @@ class Recording:
             self.server.close()
 
 
-def open_recording(viewer_cfg, spawn: bool = False, rrd: str | None = None, serve: bool = False) -> Recording:
-    """A recording stream sent to any combination of a spawned native viewer, an ``.rrd`` file and a web viewer
+def rrd_footer(choice: RrdFooter, live: bool) -> bool:
+    """Whether the ``.rrd`` ends with rerun's chunk manifest, which its sink keeps in memory until the file closes:
+    bounded by a video's or a dataset's length, not by a ``live`` camera's (:class:`ptam.vocabulary.RrdFooter`)."""
+    return choice == RrdFooter.ALWAYS or (choice == RrdFooter.AUTO and not live)
+
+
+def open_recording(
+    viewer_cfg, spawn: bool = False, rrd: str | None = None, serve: bool = False, live: bool = False
+) -> Recording:
+    """A recording stream sent to any combination of a spawned native viewer, an ``.rrd`` file (with a footer as
+    :func:`rrd_footer` decides from ``viewer.rrd_footer`` and whether the source is ``live``) and a web viewer
     served on 127.0.0.1."""
     stream = rr.RecordingStream(APPLICATION_ID, recording_id=uuid.uuid4())
     sinks, targets, server = [], [], None
@@ -195,8 +205,10 @@ def open_recording(viewer_cfg, spawn: bool = False, rrd: str | None = None, serv
         directory = os.path.dirname(os.path.abspath(rrd))
         if not os.path.isdir(directory):
             raise InputError(f"cannot write recording {rrd}: directory {directory} does not exist")
-        sinks.append(rr.FileSink(rrd))
-        targets.append(f"recording to {rrd}")
+        footer = rrd_footer(viewer_cfg.rrd_footer, live)
+        sinks.append(rr.FileSink(rrd, write_footer=footer))
+        note = "" if footer else " (no chunk manifest; `rerun rrd optimize` adds one)"
+        targets.append(f"recording to {rrd}{note}")
     if serve:
         server = WebServer.start(viewer_cfg)
         sinks.append(rr.GrpcSink(server.grpc_url))
