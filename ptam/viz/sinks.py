@@ -207,7 +207,7 @@ def open_recording(
             raise InputError(f"cannot write recording {rrd}: directory {directory} does not exist")
         footer = rrd_footer(viewer_cfg.rrd_footer, live)
         sinks.append(rr.FileSink(rrd, write_footer=footer))
-        note = "" if footer else " (no chunk manifest; `rerun rrd optimize` adds one)"
+        note = "" if footer else f" (no chunk manifest: `rerun rrd optimize {rrd} -o OUT.rrd` adds one)"
         targets.append(f"recording to {rrd}{note}")
     if serve:
         server = WebServer.start(viewer_cfg)
