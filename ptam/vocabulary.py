@@ -51,7 +51,7 @@ class ArScene(StrEnum):
 
 class RrdFooter(StrEnum):
     """Whether an ``.rrd`` recording ends with rerun's footer (a manifest of every chunk, for random access). The
-    sink keeps that manifest in memory until the file is closed, a few KB per chunk: about 12 MB a minute of ptam's
+    sink keeps that manifest in memory until the file is closed, a few KB per chunk: 12–16 MB a minute of ptam's
     viewer logging at 30 Hz, without bound on a live camera. ``auto``: a footer for videos and datasets, none live."""
 
     AUTO = "auto"

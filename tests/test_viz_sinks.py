@@ -61,8 +61,8 @@ def test_web_viewer_listens_on_localhost_only_and_reports_a_busy_port():
 
 
 def test_a_live_recording_leaves_out_the_chunk_manifest(tmp_path):
-    """rerun's footer, a manifest of every chunk, stays in the sink's memory until the file closes (measured: about
-    12 MB a minute of ptam's logging at 30 Hz): written for videos and datasets, whose length bounds it, left out for
+    """rerun's footer, a manifest of every chunk, stays in the sink's memory until the file closes (measured:
+    12–16 MB a minute of ptam's logging at 30 Hz): written for videos and datasets, whose length bounds it, left out for
     a live camera, whose session has no end. Both files hold the data."""
     cfg = load_config()
     readers = {}

@@ -111,7 +111,7 @@ def _open(args, cfg, map_camera):
     return source, camera, dataset
 
 
-def _open_recording(args, cfg):
+def _open_recording(args, cfg, live: bool):
     """The rerun recording for this run, or None (--no-viewer, or no display and nothing else asked for)."""
     if args.no_viewer:
         return None
@@ -126,7 +126,6 @@ def _open_recording(args, cfg):
         )
         return None
     try:
-        live = args.camera is not None
         recording = open_recording(cfg.viewer, spawn=spawn, rrd=args.rrd, serve=args.serve, live=live)
     except PtamError:
         raise
@@ -260,7 +259,7 @@ def _main(args, cfg, stop: _StopRequest) -> int:
     embedded = args.camera is None and args.video is None and args.dataset is None
     source, camera, dataset = _open(args, cfg, loaded.camera if loaded else None)
     with source:
-        recording = _open_recording(args, cfg)
+        recording = _open_recording(args, cfg, live)
         try:
             system, code = _run(args, cfg, source, camera, mode, init_frames, loaded, recording, live, stop)
             _score(dataset, system, embedded, cfg)
