@@ -390,7 +390,7 @@ class _LMState:
         inl = self.use & ~self.bad
         n_inl = int(inl.sum())
         c2 = self.c2 if np.isfinite(self.c2) else tukey_cutoff_sq(self.e2, everything, self.bad, 0.0)
-        pts_with_inlier = np.unique(st.mpt[inl]).size
+        pts_with_inlier = int(np.count_nonzero(np.bincount(st.mpt[inl], minlength=len(st.pts))))
         return {
             "cost": float(ba_robust_cost(self.e2, self.bad, everything, c2)),
             "tukey_cutoff": float(np.sqrt(c2)),

@@ -21,61 +21,72 @@ from numba import njit
 
 
 @njit(nogil=True, cache=True)
+def _free_measurements(pt_start, order, mrow):
+    """The free-camera measurements in walk order: their camera rows, points and ranks within their point, where
+    each point's run starts (``fr_start``) and where its entries start in the walk (``entry_start``)."""
+    n_pt = pt_start.shape[0] - 1
+    fr = np.empty(order.shape[0], np.int64)
+    pt_of = np.empty(order.shape[0], np.int64)
+    rank = np.empty(order.shape[0], np.int64)
+    fr_start = np.zeros(n_pt + 1, np.int64)
+    entry_start = np.zeros(n_pt + 1, np.int64)
+    k = 0
+    for p in range(n_pt):
+        c = 0
+        for i in range(pt_start[p], pt_start[p + 1]):
+            r = mrow[order[i]]
+            if r >= 0:
+                fr[k], pt_of[k], rank[k] = r, p, c
+                k += 1
+                c += 1
+        fr_start[p + 1] = k
+        entry_start[p + 1] = entry_start[p] + c * (c - 1) // 2
+    return fr[:k], pt_of[:k], rank[:k], fr_start, entry_start
+
+
+@njit(nogil=True, cache=True)
 def ba_pair_script(pt_start, order, mrow, n_free):
     """Every pair of free cameras sharing a point, as ``ba_schur`` walks them (PTAM code: GenerateOffDiagScripts).
 
     ``order`` lists the measurements by point, and within a point by ascending camera row. Returns, per entry
-    of that walk, the index of its camera pair (r_a > r_b), and each pair's rows (r_a) and columns (r_b).
+    of that walk, the index of its camera pair (r_a > r_b), and each pair's rows (r_a) and columns (r_b). The
+    pairs are numbered row by row (r_a), each row's in the order the walk meets them. The entries are visited
+    row by row through the measurements grouped by camera (a counting sort), an entry's place in the walk known
+    from its point and ranks: O(entries + n_free) time and O(measurements + n_free) memory; bucketing the
+    entries themselves by row took 2.7x as long (a 75-keyframe global BA's 460 000 entries).
     """
-    n = 0
-    for p in range(pt_start.shape[0] - 1):
-        c = 0
-        for i in range(pt_start[p], pt_start[p + 1]):
-            if mrow[order[i]] >= 0:
-                c += 1
-        n += c * (c - 1) // 2
-    ra = np.empty(n, np.int64)
-    rb = np.empty(n, np.int64)
-    n = 0
-    for p in range(pt_start.shape[0] - 1):
-        for ia in range(pt_start[p], pt_start[p + 1]):
-            a = mrow[order[ia]]
-            if a < 0:
-                continue
-            for ib in range(pt_start[p], ia):
-                b = mrow[order[ib]]
-                if b >= 0:
-                    ra[n] = a
-                    rb[n] = b
-                    n += 1
-    # Bucket the entries by r_a, then number the distinct r_b of each bucket: O(n + n_free), no sort.
+    fr, pt_of, rank, fr_start, entry_start = _free_measurements(pt_start, order, mrow)
     start = np.zeros(n_free + 1, np.int64)
-    for e in range(n):
-        start[ra[e] + 1] += 1
+    for t in range(fr.shape[0]):
+        start[fr[t] + 1] += 1
     for r in range(n_free):
         start[r + 1] += start[r]
     fill = start[:-1].copy()
-    bucket = np.empty(n, np.int64)
-    for e in range(n):
-        bucket[fill[ra[e]]] = e
-        fill[ra[e]] += 1
+    by_row = np.empty(fr.shape[0], np.int64)
+    for t in range(fr.shape[0]):
+        by_row[fill[fr[t]]] = t
+        fill[fr[t]] += 1
+    n = entry_start[-1]
     seen = np.full(n_free, -1, np.int64)
     slot = np.empty(n_free, np.int64)
     pair_id = np.empty(n, np.int64)
-    rows = np.empty(n, np.int64)
-    cols = np.empty(n, np.int64)
+    rows = np.empty(min(n, n_free * (n_free - 1) // 2), np.int64)
+    cols = np.empty_like(rows)
     n_pairs = 0
-    for r in range(n_free):
-        for t in range(start[r], start[r + 1]):
-            e = bucket[t]
-            b = rb[e]
-            if seen[b] != r:
-                seen[b] = r
-                slot[b] = n_pairs
-                rows[n_pairs] = r
-                cols[n_pairs] = b
-                n_pairs += 1
-            pair_id[e] = slot[b]
+    for a in range(n_free):
+        for q in range(start[a], start[a + 1]):
+            t = by_row[q]
+            i, first = rank[t], fr_start[pt_of[t]]
+            base = entry_start[pt_of[t]] + i * (i - 1) // 2  # the walk's entries of (point, r_a), by r_b
+            for j in range(i):
+                b = fr[first + j]
+                if seen[b] != a:
+                    seen[b] = a
+                    slot[b] = n_pairs
+                    rows[n_pairs] = a
+                    cols[n_pairs] = b
+                    n_pairs += 1
+                pair_id[base + j] = slot[b]
     return pair_id, rows[:n_pairs].copy(), cols[:n_pairs].copy()
 
 

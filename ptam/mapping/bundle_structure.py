@@ -60,12 +60,23 @@ class EdgeletStructure:
         return EdgeletStructure(z, z, z, z, z, z, np.zeros(1, np.int64), z)
 
 
-def _landmarks(kf_idx: np.ndarray, lm: np.ndarray, n_cams: int, what: str) -> tuple[np.ndarray, np.ndarray]:
-    """Compact landmark ids and landmark indices of the measurements; refuses a keyframe measuring one twice."""
-    ids, mlm = np.unique(lm, return_inverse=True)
-    if len(np.unique(mlm.astype(np.int64) * max(n_cams, 1) + kf_idx)) != len(lm):
+def _compact(idx: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(idx, return_inverse=True)`` for indices in [0, n), in O(len(idx) + n): numpy 2.4's np.unique
+    took 7x (with the inverse) to 20x (without) as long as a sort on a global BA's 33 000 measurements."""
+    present = np.zeros(n, bool)
+    present[idx] = True
+    rank = np.cumsum(present) - 1
+    return np.flatnonzero(present), rank[idx].astype(np.int64)
+
+
+def _landmarks(kf_idx: np.ndarray, lm: np.ndarray, n_lm: int, n_cams: int, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """Compact landmark ids and landmark indices of the measurements (landmarks < ``n_lm``, keyframes <
+    ``n_cams``); refuses a keyframe measuring one twice."""
+    ids, mlm = _compact(lm, n_lm)
+    key = np.sort(mlm * max(n_cams, 1) + kf_idx)
+    if np.any(key[1:] == key[:-1]):
         raise InputError(f"bundle adjustment: a keyframe measures the same {what} twice")
-    return ids, mlm.astype(np.int64)
+    return ids, mlm
 
 
 def seen_twice(mlm: np.ndarray, use: np.ndarray, n: int) -> np.ndarray:
@@ -77,11 +88,11 @@ def _starts(mlm: np.ndarray, n: int) -> np.ndarray:
     return np.concatenate([[0], np.cumsum(np.bincount(mlm, minlength=n))]).astype(np.int64)
 
 
-def _with_edgelets(esel, eid, emcam, cam_row, points: tuple, n_free: int):
+def _with_edgelets(esel, eid, n_edgelets: int, emcam, cam_row, points: tuple, n_free: int):
     """The edgelets' structure and the camera pairs of one walk over the points and then the edgelets, which
     numbers every pair that either shares; returns (edgelet structure, points' pair ids, pair rows, columns)."""
     mpt, mrow, order, pt_start = points
-    ids, medg = _landmarks(emcam, eid, len(cam_row), "edgelet")
+    ids, medg = _landmarks(emcam, eid, n_edgelets, len(cam_row), "edgelet")
     emrow = cam_row[emcam]
     eorder = np.lexsort((emrow, medg)).astype(np.int64)
     e_start = _starts(medg, len(ids))
@@ -109,9 +120,9 @@ def build_structure(
     sel = np.flatnonzero(adjust_points[meas_pt])
     esel = np.zeros(0, np.int64) if edgelet_meas is None else np.flatnonzero(edgelet_meas[2][edgelet_meas[1]])
     ekf, eid = (np.zeros(0, np.int64),) * 2 if edgelet_meas is None else (edgelet_meas[0][esel], edgelet_meas[1][esel])
-    cams, inverse = np.unique(np.concatenate([meas_kf[sel], ekf]), return_inverse=True)
-    mcam, emcam = inverse[: len(sel)], inverse[len(sel) :].astype(np.int64)
-    pts, mpt = _landmarks(mcam, meas_pt[sel], len(cams), "point")
+    cams, inverse = _compact(np.concatenate([meas_kf[sel], ekf]), len(fixed_poses))
+    mcam, emcam = inverse[: len(sel)], inverse[len(sel) :]
+    pts, mpt = _landmarks(mcam, meas_pt[sel], len(adjust_points), len(cams), "point")
     free = ~fixed_poses[cams]
     n_free = int(free.sum())
     cam_row = np.full(len(cams), -1, np.int64)
@@ -123,7 +134,8 @@ def build_structure(
         edg = None
         pair_id, rows, cols = ba_pair_script(pt_start, order, mrow, n_free)
     else:
-        edg, pair_id, rows, cols = _with_edgelets(esel, eid, emcam, cam_row, (mpt, mrow, order, pt_start), n_free)
+        points = (mpt, mrow, order, pt_start)
+        edg, pair_id, rows, cols = _with_edgelets(esel, eid, len(edgelet_meas[2]), emcam, cam_row, points, n_free)
     diag = np.arange(n_free, dtype=np.int64)
     return BundleStructure(
         cams=cams,
@@ -131,8 +143,8 @@ def build_structure(
         cam_row=cam_row,
         pts=pts,
         sel=sel,
-        mcam=mcam.astype(np.int64),
-        mpt=mpt.astype(np.int64),
+        mcam=mcam,
+        mpt=mpt,
         mrow=mrow,
         order=order,
         pt_start=pt_start,
