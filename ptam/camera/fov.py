@@ -64,6 +64,12 @@ class FovCamera(CameraModel):
     def distortion_params(self):
         return [self.omega]
 
+    def kernel_params(self) -> np.ndarray:
+        """ω with 2·tan(ω/2) and 1/ω beside it, which the kernels would otherwise compute for every point."""
+        p = super().kernel_params()
+        p[6], p[7] = self._t2, 1.0 / self.omega
+        return p
+
     def distortion_dict(self) -> dict:
         return {"omega": self.omega}
 
