@@ -78,8 +78,10 @@ def test_linearisation_reuses_the_accepted_trials_residuals(workspace, monkeypat
     """After an accepted step its trial's point residuals serve the next linearisation (the measurements in use are
     a subset of those the trial evaluated): each reuse equals a fresh evaluation bit for bit. The start is ~1 m and
     ~30° off and λ starts at 1e-12, so that rejected trials come between accepted ones; 10 % gross outliers leave
-    the adjustment between iterations."""
-    rng = np.random.default_rng(0)
+    the adjustment between iterations. Which trials are rejected depends on the last bits of every projection (the
+    draw of seed 0 went from three to two when the FOV projection was rewritten, the same function to 2e-13 px);
+    this draw rejects seven, in two runs between accepted steps."""
+    rng = np.random.default_rng(2)
     n = len(workspace.poses_true)
     d = np.concatenate([rng.normal(0, 1.0, (n, 3)), rng.normal(0, 0.5, (n, 3))], axis=1)
     points = workspace.points_init + rng.normal(0, 1.0, workspace.points_init.shape)
