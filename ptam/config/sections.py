@@ -241,6 +241,7 @@ class SystemConfig:
     output_flush_s: Annotated[float, Range("(0, inf)")]
     latency_window_frames: Annotated[int, Range("[1, inf)")]
     background_nice: Annotated[int, Range("[0, 19]")]
+    warm_up_frames: Annotated[int, Range("[0, inf)")]
 
 
 @dataclass(frozen=True)

@@ -25,6 +25,7 @@ import logging
 import threading
 import time
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
@@ -48,7 +49,7 @@ from .ray_check import RayCheck
 from .run_stats import RunStats
 from .stereo_start import StereoStart
 from .tracks import Tracks
-from .warm_up import warm_up
+from .warm_up import rehearsal_frames
 
 log = logging.getLogger("ptam")
 
@@ -65,6 +66,8 @@ class System(Initialisation, KeyframePolicy, Tracks):
     keyframes (the mapper never runs). ``observers``: callables ``f(outcome, system)`` run after every frame in
     the tracker's thread (the viewer); they must be cheap and must not block. ``init_mode``: ``"auto"`` or
     ``"key"`` (stereo initialisation keyframes taken by :meth:`request_keyframe`)."""
+
+    _rehearsed: ClassVar[bool] = False  # the kernels were loaded by a rehearsal in this process (``_rehearse``)
 
     def __init__(
         self,
@@ -103,7 +106,6 @@ class System(Initialisation, KeyframePolicy, Tracks):
         self._stepped = threading.Event()  # the mapper finished a unit of work
         self._mapper_error: BaseException | None = None
         self.last_failure: str | None = None
-        self._warm = False
         self._held: list[tuple[float, np.ndarray]] = []  # tracked while the initialisation frames are posed
         self._confirming: list[tuple[float, np.ndarray]] | None = None  # poses tracked since a relocalisation
         self._good_streak = 0  # frames in a row tracked with good quality, up to this one
@@ -117,15 +119,34 @@ class System(Initialisation, KeyframePolicy, Tracks):
 
     # -- threads -------------------------------------------------------------------------------------------
     def start(self) -> System:
-        """Start the mapper thread (not in ``sync``); outside ``sync`` mode, load the per-frame kernels first so
-        the first frames are not dropped while they load."""
-        if self.mode != RunMode.SYNC and not self._warm:
-            warm_up(self.camera, self.cfg)
-            self._warm = True
+        """Start the mapper thread (not in ``sync``); outside ``sync`` mode, load every kernel first
+        (``_rehearse``) so that no frame waits while one is compiled or loaded."""
+        if self.mode != RunMode.SYNC:
+            self._rehearse()
         if self.mode != RunMode.SYNC and not self.localize_only and self._thread is None:
             self._thread = threading.Thread(target=self._mapper_loop, name="ptam-mapper", daemon=True)
             self._thread.start()
         return self
+
+    def _rehearse(self) -> None:
+        """Once per process, a ``sync`` System over ``system.warm_up_frames`` synthetic frames (``warm_up``) loads
+        the kernels of the tracker and the mapper, or compiles them on the first run after an install. Its own
+        log lines (map initialised, ...) are held back: they are not the user's map."""
+        n = self.cfg.system.warm_up_frames
+        if n == 0 or System._rehearsed:
+            return
+        log.info("loading the kernels on %d synthetic frames (the first run after an install compiles them)", n)
+        t0 = time.perf_counter()
+        level = log.level  # the package's logger, which every module's logs through
+        log.setLevel(logging.WARNING)
+        try:
+            with System(self.camera, self.cfg, mode=RunMode.SYNC) as rehearsal:
+                for frame in rehearsal_frames(self.camera, n):
+                    rehearsal.process(frame)
+        finally:
+            log.setLevel(level)
+        System._rehearsed = True
+        log.info("kernels loaded in %.1f s", time.perf_counter() - t0)
 
     def _mapper_loop(self) -> None:
         lower_priority(self.cfg.system.background_nice)

@@ -1,54 +1,77 @@
-"""Loading the per-frame kernels before the first frame arrives.
+"""Loading every kernel before the first frame arrives: a short synthetic rehearsal.
 
-numba's ``cache=True`` kernels are compiled once per machine but still loaded on their first call; the tracker's
-first frames each touch a few more of them (~0.2 s at frame 0, ~50 ms at the first tracked frame), which at
-30 Hz drops frames just when initialisation and the first pose matter most. ``warm_up`` runs one frame of every
-per-frame path — pyramid, trails, rotation estimate, point tracking against a one-keyframe map, and before the
-map the panorama's first keyframe and the model-free check — on a synthetic image, before the source starts
-delivering.
+numba's ``cache=True`` kernels are compiled on the first run after an install (about 40 s for all of them on two
+cores) and loaded from the cache on their first call in every later process (milliseconds each). Both hold the
+GIL. Done lazily, the tracker's first frames paid for the per-frame kernels, and the mapper's first keyframes
+for the mapper's: bundle adjustment, the edgelets (Agility §4), the epipolar searches. On a live camera that
+drops frames just when the map is young; after an install it held the tracker for seconds while the first map
+was being refined (two_wall in ``realtime`` mode from empty caches: 14 % of the frames correct, 11 wrong poses
+reported as tracked, against 100 % and none once compiled).
+
+So before the source starts delivering, ``System.start`` runs a ``sync`` System over ``rehearsal_frames``: the
+user's camera sliding sideways past a slanted dead-leaves plane. Its ``system.warm_up_frames`` frames take the
+whole pipeline through stereo initialisation, tracking with points and edgelets, four keyframes, new points
+and edgelets, and local and global bundle adjustment. The plane is slanted so that the keyframes see a spread
+of depths (the mapper's epipolar searches span the scene's depth range, which a fronto-parallel plane has not).
 """
 
 from __future__ import annotations
+
+from collections.abc import Iterator
 
 import cv2
 import numpy as np
 
 from ..camera.model import CameraModel
-from ..config import Config
-from ..image.pyramid import Pyramid
-from ..map.keyframe import KeyFrame
-from ..map.map import SRC_ROOT, Map
-from ..tracking.tracker import Tracker
-from ..tracking.trails import TrailTracker
-from .rotation_start import RotationStart
+from ..capture.frame import Frame
+from ..synthetic.texture import make_texture
 
-_TEXTURE_BLUR_PX = 1.5  # corners need some smoothness; any texture that FAST fires on serves
-_DEPTH = 1.0  # the synthetic points sit on a fronto-parallel plane this far away (map units)
+_DEPTH_M = 1.0  # the plane's distance along the first frame's optical axis
+_SLANT_DEG = 30.0  # the plane turned about the image's vertical axis, for a spread of depths
+_STEP_M = 0.01  # sideways per frame: PTAM's stereo baseline (10 % of the depth) after ten frames
+_FPS = 30.0
+_TEXTURE = {
+    "type": "dead_leaves",
+    "seed": 0,
+    "texel": 0.002,
+    "sizes": [0.04, 0.4],
+    "exponent": 2.5,
+    "coverage": 1.0,
+    "grey": [20, 235],
+}
+_MARGIN_M = 1.0  # texture beyond what the first and last frames see of the plane's centre line
+_HEIGHT_M = 2.0  # the texture's extent up and down; rays beyond it see the texture reflected
+_BLUR_PX = 0.7  # a lens's blur: the dead leaves' edges are one texel sharp
 
 
-def warm_up(camera: CameraModel, cfg: Config) -> None:
-    rng = np.random.default_rng(0)
-    noise = cv2.GaussianBlur(rng.random((camera.height, camera.width)), (0, 0), _TEXTURE_BLUR_PX)
-    image = (255 * (noise - noise.min()) / np.ptp(noise)).astype(np.uint8)
-    pyramid = Pyramid.build(image, cfg.image)
-    trails = TrailTracker(cfg.init, cfg.image)
-    if trails.start(pyramid) == 0:
-        return
-    trails.advance(pyramid)
-    m = Map()
-    m.add_keyframe(KeyFrame(0, pyramid, _DEPTH, 0.0, 0.0), np.eye(4))
-    xy = trails.start_xy.astype(np.float64)
-    rays = camera.unproject(xy)
-    X = np.concatenate([rays * _DEPTH, np.full((len(xy), 1), _DEPTH)], axis=1)
-    ids = m.add_points(X, np.broadcast_to([0.0, 0.0, -1.0], X.shape), 0, 0, xy)
-    m.add_measurements(0, ids, xy, 0, SRC_ROOT)
-    tracker = Tracker(camera, cfg)
-    snapshot = m.snapshot()
-    tracker.track(image, snapshot)
-    tracker.set_pose(np.eye(4), recovered=True)  # the enlarged coarse stage of a recovered pose
-    tracker.track(image, snapshot)
-    ms = cfg.model_selection
-    if ms.enabled and ms.initialisation_free:  # the panorama before the map: rays, and the model-free check
-        start = RotationStart(camera, cfg, background=False)
-        if start.begin(pyramid, 0, 0.0) is not None:
-            start.follow(image, pyramid)
+def rehearsal_frames(camera: CameraModel, n: int) -> Iterator[Frame]:
+    """``n`` frames of the camera translating along its x axis by ``_STEP_M`` a frame in front of a plane that
+    crosses the optical axis at ``_DEPTH_M``, turned by ``_SLANT_DEG`` about the y axis; rendered through the
+    camera's own lens model (``unproject`` of every pixel, then ``cv2.remap`` of the texture)."""
+    a = np.deg2rad(_SLANT_DEG)
+    normal = np.array([-np.sin(a), 0.0, np.cos(a)])  # towards the camera
+    across = np.array([np.cos(a), 0.0, np.sin(a)])  # the plane's in-plane axis that the camera slides along
+    width_m = n * _STEP_M / np.cos(a) + 2 * _MARGIN_M
+    texture, texel = make_texture(_TEXTURE, width_m, _HEIGHT_M, "warm-up texture")
+    u, v = np.meshgrid(np.arange(camera.width, dtype=np.float64), np.arange(camera.height, dtype=np.float64))
+    xy = camera.unproject(np.stack([u.ravel(), v.ravel()], axis=-1))
+    rays = np.concatenate([xy, np.ones((len(xy), 1))], axis=1)
+    r_normal, r_across = rays @ normal, rays @ across
+    d0 = _DEPTH_M * normal[2]  # the plane n.X = d0 passes through (0, 0, _DEPTH_M)
+    facing = r_normal > 0  # rays that meet the plane in front of the camera
+    for i in range(n):
+        c = np.array([i * _STEP_M, 0.0, 0.0])
+        s = np.where(facing, (d0 - c @ normal) / np.where(facing, r_normal, 1.0), np.nan)
+        along = c @ across + s * r_across - _DEPTH_M * across[2] + _MARGIN_M
+        up = s * rays[:, 1] + 0.5 * _HEIGHT_M
+        map_x = (along / texel).reshape(camera.height, camera.width).astype(np.float32)
+        map_y = (up / texel).reshape(camera.height, camera.width).astype(np.float32)
+        img = cv2.remap(
+            texture,
+            np.nan_to_num(map_x, nan=-1.0),
+            np.nan_to_num(map_y, nan=-1.0),
+            cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_REFLECT,
+        )
+        img = cv2.GaussianBlur(img, (0, 0), _BLUR_PX)
+        yield Frame(i, i / _FPS, np.clip(img, 0, 255).astype(np.uint8))

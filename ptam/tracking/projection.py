@@ -22,7 +22,8 @@ def project_points(cam_params, width: int, height: int, tracker_cfg, T_cw, X, id
     """Project ``X[ids]`` with ``T_cw``; visibility (PTAM code ``TrackerData::Project``): in front, within
     ``valid_radius_factor`` × the image's largest radius, inside the image shrunk by ``image_margin_px``.
     Returns the visible subset, or with ``keep_invisible`` all points and the visibility mask."""
-    ids = np.ascontiguousarray(ids, dtype=np.int64)
+    ids = np.ascontiguousarray(ids, dtype=np.int64).view()
+    ids.setflags(write=False)  # one kernel signature whether the ids come from a snapshot (read-only) or not
     Xc, uv, visible = project_map_points(
         cam_params,
         np.ascontiguousarray(T_cw, dtype=np.float64),
