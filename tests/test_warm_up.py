@@ -1,12 +1,14 @@
 """The kernel rehearsal before a live source starts (``ptam.system.warm_up``, ``System._rehearse``).
 
 Its synthetic slide is tracked as its geometry says, takes the pipeline through keyframes, edgelets and bundle
-adjustment, and an async start loads the mapper's kernels before the first frame without the rehearsal's own
-log lines reaching the user.
+adjustment, an async start loads the mapper's kernels before the first frame, and the rehearsal's own log lines
+stay out of the user's log (one line says why the start waits when the kernels are being compiled).
 """
 
+import logging
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -15,8 +17,8 @@ from ptam.camera.fov import FovCamera
 from ptam.camera.pinhole import PinholeCamera
 from ptam.config import load_config
 from ptam.eval.ate import ate
-from ptam.system import System
-from ptam.system.warm_up import _FPS, _STEP_M, rehearsal_frames
+from ptam.system import System, warm_up
+from ptam.system.warm_up import _FPS, _STEP_M, rehearsal_frames, rehearsal_log
 
 CAMERAS = {
     "pinhole": PinholeCamera(640, 480, 500.0, 500.0, 319.5, 239.5),
@@ -77,14 +79,29 @@ print(len(loaded), len(names), logging.getLogger("ptam").level)
 """
 
 
-def test_an_async_start_loads_the_mapper_kernels_before_the_first_frame_and_keeps_the_log_quiet():
+def test_an_async_start_loads_the_mapper_kernels_before_the_first_frame_and_keeps_its_map_out_of_the_log():
     out = subprocess.run(
         [sys.executable, "-c", _LIVE_START, *MAPPER_KERNELS], capture_output=True, text=True, check=True
     )
     loaded, total, level = map(int, out.stdout.split())
     assert (loaded, total) == (len(MAPPER_KERNELS), len(MAPPER_KERNELS))
     assert level == 0  # the package logger's level is restored after the rehearsal
-    lines = out.stderr.splitlines()
-    assert len([x for x in lines if x.startswith("ptam: loading the kernels")]) == 1
-    assert len([x for x in lines if x.startswith("ptam: kernels loaded in")]) == 1
-    assert not [x for x in lines if "map initialised" in x]  # the rehearsal's own map stays out of the log
+    assert not [x for x in out.stderr.splitlines() if "map initialised" in x]  # the rehearsal's map is not the user's
+
+
+def test_a_rehearsal_that_waits_says_why_and_a_quick_one_prints_nothing(monkeypatch, caplog):
+    log = logging.getLogger("ptam")
+    with caplog.at_level(logging.INFO, logger="ptam"):
+        with rehearsal_log(log):
+            log.info("map initialised from frames 0 and 11: 887 points")  # the rehearsal's own line
+        assert caplog.records == []
+        monkeypatch.setattr(warm_up, "_NOTICE_AFTER_S", 0.0)  # as if compiling
+        with rehearsal_log(log):
+            for _ in range(500):
+                if caplog.records:
+                    break
+                time.sleep(0.01)
+        messages = [r.getMessage() for r in caplog.records]
+        assert len(messages) == 2
+        assert messages[0].startswith("compiling the kernels") and messages[1].startswith("kernels ready after")
+        assert log.level == logging.INFO  # restored

@@ -49,7 +49,7 @@ from .ray_check import RayCheck
 from .run_stats import RunStats
 from .stereo_start import StereoStart
 from .tracks import Tracks
-from .warm_up import rehearsal_frames
+from .warm_up import rehearsal_frames, rehearsal_log
 
 log = logging.getLogger("ptam")
 
@@ -130,23 +130,14 @@ class System(Initialisation, KeyframePolicy, Tracks):
 
     def _rehearse(self) -> None:
         """Once per process, a ``sync`` System over ``system.warm_up_frames`` synthetic frames (``warm_up``) loads
-        the kernels of the tracker and the mapper, or compiles them on the first run after an install. Its own
-        log lines (map initialised, ...) are held back: they are not the user's map."""
+        the kernels of the tracker and the mapper, or compiles them on the first run after an install."""
         n = self.cfg.system.warm_up_frames
         if n == 0 or System._rehearsed:
             return
-        log.info("loading the kernels on %d synthetic frames (the first run after an install compiles them)", n)
-        t0 = time.perf_counter()
-        level = log.level  # the package's logger, which every module's logs through
-        log.setLevel(logging.WARNING)
-        try:
-            with System(self.camera, self.cfg, mode=RunMode.SYNC) as rehearsal:
-                for frame in rehearsal_frames(self.camera, n):
-                    rehearsal.process(frame)
-        finally:
-            log.setLevel(level)
+        with rehearsal_log(log), System(self.camera, self.cfg, mode=RunMode.SYNC) as rehearsal:
+            for frame in rehearsal_frames(self.camera, n):
+                rehearsal.process(frame)
         System._rehearsed = True
-        log.info("kernels loaded in %.1f s", time.perf_counter() - t0)
 
     def _mapper_loop(self) -> None:
         lower_priority(self.cfg.system.background_nice)

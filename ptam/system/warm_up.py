@@ -17,6 +17,10 @@ of depths (the mapper's epipolar searches span the scene's depth range, which a 
 
 from __future__ import annotations
 
+import contextlib
+import logging
+import threading
+import time
 from collections.abc import Iterator
 
 import cv2
@@ -42,6 +46,32 @@ _TEXTURE = {
 _MARGIN_M = 1.0  # texture beyond what the first and last frames see of the plane's centre line
 _HEIGHT_M = 2.0  # the texture's extent up and down; rays beyond it see the texture reflected
 _BLUR_PX = 0.7  # a lens's blur: the dead leaves' edges are one texel sharp
+_NOTICE_AFTER_S = 3.0  # a rehearsal with the kernels cached takes 0.6-1.3 s on two cores; compiling them 35 s
+
+
+@contextlib.contextmanager
+def rehearsal_log(log: logging.Logger) -> Iterator[None]:
+    """The rehearsal's own log lines (map initialised, ...) are held back: they are not the user's map. If it takes
+    longer than ``_NOTICE_AFTER_S`` (the kernels are being compiled), one line says why the start waits, and one
+    how long it took; a quick one prints nothing."""
+    level, t0 = log.level, time.perf_counter()
+    noticed = threading.Event()
+
+    def notice() -> None:
+        noticed.set()
+        log.warning("compiling the kernels for this machine (once after an install, about half a minute)")
+
+    timer = threading.Timer(_NOTICE_AFTER_S, notice)
+    timer.daemon = True
+    log.setLevel(logging.WARNING)
+    timer.start()
+    try:
+        yield
+    finally:
+        timer.cancel()
+        log.setLevel(level)
+    if noticed.is_set():
+        log.info("kernels ready after %.0f s", time.perf_counter() - t0)
 
 
 def rehearsal_frames(camera: CameraModel, n: int) -> Iterator[Frame]:
