@@ -103,5 +103,5 @@ def test_a_rehearsal_that_waits_says_why_and_a_quick_one_prints_nothing(monkeypa
                 time.sleep(0.01)
         messages = [r.getMessage() for r in caplog.records]
         assert len(messages) == 2
-        assert messages[0].startswith("compiling the kernels") and messages[1].startswith("kernels ready after")
+        assert messages[0].startswith("loading the kernels") and messages[1].startswith("kernels ready after")
         assert log.level == logging.INFO  # restored

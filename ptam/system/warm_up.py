@@ -52,14 +52,14 @@ _NOTICE_AFTER_S = 3.0  # a rehearsal with the kernels cached takes 0.6-1.3 s on 
 @contextlib.contextmanager
 def rehearsal_log(log: logging.Logger) -> Iterator[None]:
     """The rehearsal's own log lines (map initialised, ...) are held back: they are not the user's map. If it takes
-    longer than ``_NOTICE_AFTER_S`` (the kernels are being compiled), one line says why the start waits, and one
-    how long it took; a quick one prints nothing."""
+    longer than ``_NOTICE_AFTER_S`` (the kernels are being compiled, or the camera's images are large), one line
+    says why the start waits, and one how long it took; a quick one prints nothing."""
     level, t0 = log.level, time.perf_counter()
     noticed = threading.Event()
 
     def notice() -> None:
         noticed.set()
-        log.warning("compiling the kernels for this machine (once after an install, about half a minute)")
+        log.warning("loading the kernels on a short rehearsal (the first run after an install compiles them: ~30 s)")
 
     timer = threading.Timer(_NOTICE_AFTER_S, notice)
     timer.daemon = True
