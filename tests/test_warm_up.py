@@ -17,7 +17,7 @@ from ptam.camera.fov import FovCamera
 from ptam.camera.pinhole import PinholeCamera
 from ptam.config import load_config
 from ptam.eval.ate import ate
-from ptam.system import System, warm_up
+from ptam.system import System, core, warm_up
 from ptam.system.warm_up import _FPS, _STEP_M, rehearsal_frames, rehearsal_log
 
 CAMERAS = {
@@ -105,3 +105,21 @@ def test_a_rehearsal_that_waits_says_why_and_a_quick_one_prints_nothing(monkeypa
         assert len(messages) == 2
         assert messages[0].startswith("loading the kernels") and messages[1].startswith("kernels ready after")
         assert log.level == logging.INFO  # restored
+
+
+def test_a_failed_rehearsal_warns_in_one_line_and_the_system_still_tracks(monkeypatch, caplog):
+    def broken(camera, n):
+        raise ValueError("an unrenderable lens")
+        yield
+
+    monkeypatch.setattr(core, "rehearsal_frames", broken)
+    monkeypatch.setattr(System, "_rehearsed", False)
+    camera = CAMERAS["pinhole"]
+    with caplog.at_level(logging.INFO, logger="ptam"), System(camera, load_config(), mode="async") as system:
+        for frame in rehearsal_frames(camera, 20):
+            system.process(frame)
+    warnings = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
+    assert warnings == [
+        "the kernel rehearsal failed (ValueError: an unrenderable lens); kernels load as the frames arrive"
+    ]
+    assert system.stats.frames == 20 and System._rehearsed  # tried once per process, not again on the next start

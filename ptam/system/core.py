@@ -134,9 +134,12 @@ class System(Initialisation, KeyframePolicy, Tracks):
         n = self.cfg.system.warm_up_frames
         if n == 0 or System._rehearsed:
             return
-        with rehearsal_log(log), System(self.camera, self.cfg, mode=RunMode.SYNC) as rehearsal:
-            for frame in rehearsal_frames(self.camera, n):
-                rehearsal.process(frame)
+        try:
+            with rehearsal_log(log), System(self.camera, self.cfg, mode=RunMode.SYNC) as rehearsal:
+                for frame in rehearsal_frames(self.camera, n):
+                    rehearsal.process(frame)
+        except Exception as e:  # the rehearsal only saves time: its failure must not stop the user's run
+            log.warning("the kernel rehearsal failed (%s: %s); kernels load as the frames arrive", type(e).__name__, e)
         System._rehearsed = True
 
     def _mapper_loop(self) -> None:
