@@ -1,6 +1,6 @@
 """Loading every kernel before the first frame arrives: a short synthetic rehearsal.
 
-numba's ``cache=True`` kernels are compiled on the first run after an install (about 40 s for all of them on two
+numba's ``cache=True`` kernels are compiled on the first run after an install (about 35 s for all of them on two
 cores) and loaded from the cache on their first call in every later process (milliseconds each). Both hold the
 GIL. Done lazily, the tracker's first frames paid for the per-frame kernels, and the mapper's first keyframes
 for the mapper's: bundle adjustment, the edgelets (Agility §4), the epipolar searches. On a live camera that
