@@ -86,22 +86,20 @@ def rehearsal_frames(camera: CameraModel, n: int) -> Iterator[Frame]:
     u, v = np.meshgrid(np.arange(camera.width, dtype=np.float64), np.arange(camera.height, dtype=np.float64))
     xy = camera.unproject(np.stack([u.ravel(), v.ravel()], axis=-1))
     rays = np.concatenate([xy, np.ones((len(xy), 1))], axis=1)
-    r_normal, r_across = rays @ normal, rays @ across
+    r_normal = rays @ normal
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv_r_normal = np.where(r_normal > 0, 1.0 / r_normal, np.nan)  # rays that never meet the plane: NaN
+    r_across, r_up = rays @ across, rays[:, 1]
     d0 = _DEPTH_M * normal[2]  # the plane n.X = d0 passes through (0, 0, _DEPTH_M)
-    facing = r_normal > 0  # rays that meet the plane in front of the camera
+    origin = _MARGIN_M - _DEPTH_M * across[2]  # the texture starts _MARGIN_M before the plane point (0, 0, _DEPTH_M)
+    shape = (camera.height, camera.width)
     for i in range(n):
-        c = np.array([i * _STEP_M, 0.0, 0.0])
-        s = np.where(facing, (d0 - c @ normal) / np.where(facing, r_normal, 1.0), np.nan)
-        along = c @ across + s * r_across - _DEPTH_M * across[2] + _MARGIN_M
-        up = s * rays[:, 1] + 0.5 * _HEIGHT_M
-        map_x = (along / texel).reshape(camera.height, camera.width).astype(np.float32)
-        map_y = (up / texel).reshape(camera.height, camera.width).astype(np.float32)
+        x = i * _STEP_M  # the camera centre (x, 0, 0)
+        s = (d0 - x * normal[0]) * inv_r_normal  # distance along each ray to the plane
+        map_x = np.nan_to_num((x * across[0] + s * r_across + origin) / texel, nan=-1.0).reshape(shape)
+        map_y = np.nan_to_num((s * r_up + 0.5 * _HEIGHT_M) / texel, nan=-1.0).reshape(shape)
         img = cv2.remap(
-            texture,
-            np.nan_to_num(map_x, nan=-1.0),
-            np.nan_to_num(map_y, nan=-1.0),
-            cv2.INTER_LINEAR,
-            borderMode=cv2.BORDER_REFLECT,
+            texture, map_x.astype(np.float32), map_y.astype(np.float32), cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT
         )
         img = cv2.GaussianBlur(img, (0, 0), _BLUR_PX)
         yield Frame(i, i / _FPS, np.clip(img, 0, 255).astype(np.uint8))
