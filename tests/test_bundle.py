@@ -79,8 +79,10 @@ def test_linearisation_reuses_the_accepted_trials_residuals(workspace, monkeypat
     a subset of those the trial evaluated): each reuse equals a fresh evaluation bit for bit. The start is ~1 m and
     ~30° off and λ starts at 1e-12, so that rejected trials come between accepted ones; 10 % gross outliers leave
     the adjustment between iterations. Which trials are rejected depends on the last bits of every projection (the
-    draw of seed 0 went from three to two when the FOV projection was rewritten, the same function to 2e-13 px);
-    this draw rejects seven, in two runs between accepted steps."""
+    draw of seed 0 went from three to two when the FOV projection was rewritten, the same function to 2e-13 px),
+    and so on the processor: this draw rejected seven trials on the machine it was chosen on, and fifteen on an AMD
+    EPYC, where it took 36 iterations (the default cap is 20). The cap is raised so that it converges wherever those
+    bits fall."""
     rng = np.random.default_rng(2)
     n = len(workspace.poses_true)
     d = np.concatenate([rng.normal(0, 1.0, (n, 3)), rng.normal(0, 0.5, (n, 3))], axis=1)
@@ -98,7 +100,7 @@ def test_linearisation_reuses_the_accepted_trials_residuals(workspace, monkeypat
         return linearise(self, s, phases)
 
     monkeypatch.setattr(Bundle, "_linearise", checking)
-    res = run(far, cfg=dataclasses.replace(CFG, lambda_initial=1e-12))
+    res = run(far, cfg=dataclasses.replace(CFG, lambda_initial=1e-12, max_iterations=100))
     assert res.converged and res.iterations > res.accepted + 2 and len(res.outliers) > 0.05 * len(far.meas_kf)
     assert len(checked) >= 5 and all(checked)
 
