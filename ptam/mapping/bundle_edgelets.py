@@ -13,13 +13,16 @@ edgelet measurement beyond the cut-off (or with a sample point behind the camera
 reported as an outlier, as a point measurement is (PTAM §6.4).
 
 Sample points. Eq. 6 places them at ∓5/|d| on the edgelet's axis, |d| its image length per unit length. They are
-placed again at every linearisation, from the current state, and kept for that iteration's trial steps (whose
-costs are then comparable). Placed once at the start instead, they stay fixed in metres while the edgelet turns:
-an edgelet turning towards its viewing rays brings both closer to its projected centre, which fits any line
-through the centre better, and a poorly determined edgelet (nearly parallel to the baseline) slid that way by
-tens of degrees over many iterations (measured on the bench's exploring map). The Jacobians treat them as fixed;
-the term this leaves out is proportional to the angle between the projected edgelet and the measured line, which
-vanishes at the solution.
+placed again at every linearisation, from the current state, and kept for that iteration's trial steps (whose costs
+are then comparable). At the start |d| is the tangent at the projected centre; after that it is the chord |s₂ − s₁|
+/ (z₂ − z₁) of the accepted trial's own two projections, which are at the current state: the two agree to second
+order, and where they differ (an edgelet pointing at the camera, its sample points far apart in depth) the chord
+puts the pair's mean image offset nearer 5 px (``tests/test_bundle_edgelets.py``). Placed once at the start instead,
+they stay fixed in metres while the edgelet turns: an edgelet turning towards its viewing rays brings both closer to
+its projected centre, which fits any line through the centre better, and a poorly determined edgelet (nearly
+parallel to the baseline) slid that way by tens of degrees over many iterations (measured on the bench's exploring
+map). The Jacobians treat them as fixed; the term this leaves out is proportional to the angle between the projected
+edgelet and the measured line, which vanishes at the solution.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ from ..edgelet import Edgelets, perp
 from ..edgelet.edgelet_ba_kernels import frames_updated
 from .bundle_edgelet_kernels import (
     ba_edgelet_linearise,
+    ba_edgelet_place,
     ba_edgelet_residuals,
     ba_edgelet_rows,
     ba_edgelet_schur,
@@ -62,6 +66,8 @@ class EdgeletLM:
         self.m_hat = np.ascontiguousarray(perp(b / np.linalg.norm(b, axis=1, keepdims=True)))
         self.offset_px = inp.cfg.ba_sample_offset_px
         self.along = np.zeros((self.n, 2))
+        self.placed = np.zeros((self.n, 2))
+        self._unplaced = True
         ne = len(es.ids)
         self.V = np.zeros((ne, 4, 4))
         self.eb = np.zeros((ne, 4))
@@ -74,31 +80,26 @@ class EdgeletLM:
         self.je = np.zeros((self.n, 2, 4))
 
     def _residuals(self, P: np.ndarray, F: np.ndarray, use: np.ndarray) -> None:
-        """e2 and bad (a sample point behind the camera) of the measurements in ``use`` at poses P, frames F."""
+        """e2 and bad (a sample point behind the camera) of the measurements in ``use`` at poses P, frames F, and
+        the sample points re-placed there (``placed``)."""
         es = self.es
+        meas = (es.mcam, es.medg, self.a, self.m_hat)
         ba_edgelet_residuals(
-            self.cam, P, F, es.mcam, es.medg, self.a, self.m_hat, self.along, use, self.err, self.e2, self.bad
+            self.cam, P, F, meas, self.along, self.offset_px, use, self.err, self.e2, self.bad, self.placed
         )
 
     def residuals(self, P: np.ndarray) -> None:
-        """The sample points placed at the current state (eq. 6), then the residuals there and their Jacobian rows
-        (for ``linearise``); a trial keeps the sample points of its linearisation, so that its cost is comparable."""
+        """The residuals at the current state and their Jacobian rows (for ``linearise``), at sample points placed
+        at this state (eq. 6): by ``ba_edgelet_place`` at the start, then by the accepted trial, which projected
+        them there. A trial keeps the sample points of its linearisation, so that its cost is comparable."""
         if self.n:
             es = self.es
+            if self._unplaced:
+                ba_edgelet_place(self.cam, P, self.F, es.mcam, es.medg, self.offset_px, self.along)
+                self._unplaced = False
             meas = (es.mcam, es.medg, self.a, self.m_hat)
             ba_edgelet_rows(
-                self.cam,
-                P,
-                self.F,
-                meas,
-                self.offset_px,
-                self.use,
-                self.along,
-                self.err,
-                self.jp,
-                self.je,
-                self.e2,
-                self.bad,
+                self.cam, P, self.F, meas, self.use, self.along, self.err, self.jp, self.je, self.e2, self.bad
             )
             # Each edgelet's mean sample offset |z| at this linearisation, for ``squared_update``.
             n_e = len(es.ids)
@@ -178,8 +179,10 @@ class EdgeletLM:
         return F_new, float(ba_robust_cost(self.e2, self.bad, self.live, c2))
 
     def accept(self, F_new: np.ndarray | None) -> None:
+        """The accepted trial's frames, and its sample points re-placed at the new state."""
         if F_new is not None:
             self.F = F_new
+            self.along, self.placed = self.placed, self.along
 
     def hold_underdetermined(self) -> None:
         """Edgelets left with fewer than two measurements in the problem are held (``_LMState``'s rule for points)."""
