@@ -289,8 +289,8 @@ def test_convergence_counts_an_edgelet_turn_as_its_sample_points_motion(problem)
         np.ones(len(prob.points_true), bool),
         (inp.obs.kf, inp.obs.edgelet, inp.adjust_mask),
     )
-    lm = EdgeletLM(prob.camera, st, inp)
     P = prob.poses_true[st.cams]
+    lm = EdgeletLM(prob.camera, st, inp, P)
     lm.residuals(P)
     n = len(st.edgelets.ids)
     turn = np.zeros((n, 4))

@@ -2,7 +2,7 @@
 
 Each keyframe measurement of an edgelet is an image line through ``a`` with unit normal m̂ (perpendicular to
 the measured direction b). Two virtual sample points sit on the edgelet's z-axis at p_nE = (0, 0, z_n)
-(eq. 6: z_n = ∓5/|d| in the edgelet frame, computed once by the caller and then fixed), project to
+(eq. 6: z_n = ∓5/|d| in the edgelet frame, placed by the caller and fixed while it evaluates), project to
 s_n = CamProj(E_KW E_WE p_nE), and the residual is their perpendicular distance from the measured line,
 ε_n = m̂ · (s_n − a), in pixels.
 

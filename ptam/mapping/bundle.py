@@ -130,7 +130,7 @@ class Bundle:
         phases = {"setup": 0.0, "linearise": 0.0, "schur": 0.0, "solve": 0.0, "backsub": 0.0, "trial": 0.0}
         solver = ReducedSolver(st, dense=st.n_free <= self.cfg.dense_max_cameras)
         phases["setup"] = time.perf_counter() - t_start
-        edg_lm = EdgeletLM(self.camera, st, edg)
+        edg_lm = EdgeletLM(self.camera, st, edg, inp.poses[st.cams])
         state = _LMState(st, inp.poses[st.cams], inp.points[st.pts], inp.meas_xy[st.sel], inv_sigma, edg_lm)
         state.gauge = ScaleGauge.of(st) if self.cfg.hold_scale and edg_lm.n else None  # points alone: PTAM's step
         status = self._levenberg_marquardt(state, solver, should_abort, phases)

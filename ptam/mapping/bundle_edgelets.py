@@ -48,7 +48,8 @@ from .bundle_structure import BundleStructure, EdgeletStructure, seen_twice
 class EdgeletLM:
     """The adjusted edgelets (frames E_WE), their measurements and the blocks of the current linearisation."""
 
-    def __init__(self, camera: CameraModel, st: BundleStructure, inp: EdgeletBundleInput | None):
+    def __init__(self, camera: CameraModel, st: BundleStructure, inp: EdgeletBundleInput | None, P: np.ndarray):
+        """``P``: the starting poses (compact), at which the sample points are first placed (eq. 6)."""
         es = st.edgelets if st.edgelets is not None and inp is not None else EdgeletStructure.empty()
         self.es = es
         self.n = len(es.sel)
@@ -67,7 +68,7 @@ class EdgeletLM:
         self.offset_px = inp.cfg.ba_sample_offset_px
         self.along = np.zeros((self.n, 2))
         self.placed = np.zeros((self.n, 2))
-        self._unplaced = True
+        ba_edgelet_place(self.cam, P, self.F, es.mcam, es.medg, self.offset_px, self.along)
         ne = len(es.ids)
         self.V = np.zeros((ne, 4, 4))
         self.eb = np.zeros((ne, 4))
@@ -90,13 +91,10 @@ class EdgeletLM:
 
     def residuals(self, P: np.ndarray) -> None:
         """The residuals at the current state and their Jacobian rows (for ``linearise``), at sample points placed
-        at this state (eq. 6): by ``ba_edgelet_place`` at the start, then by the accepted trial, which projected
+        at this state (eq. 6): by ``ba_edgelet_place`` at construction, then by the accepted trial, which projected
         them there. A trial keeps the sample points of its linearisation, so that its cost is comparable."""
         if self.n:
             es = self.es
-            if self._unplaced:
-                ba_edgelet_place(self.cam, P, self.F, es.mcam, es.medg, self.offset_px, self.along)
-                self._unplaced = False
             meas = (es.mcam, es.medg, self.a, self.m_hat)
             ba_edgelet_rows(
                 self.cam, P, self.F, meas, self.use, self.along, self.err, self.jp, self.je, self.e2, self.bad
