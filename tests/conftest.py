@@ -1,5 +1,7 @@
 """Shared test setup: the synthetic-sequence cache lives in a temporary directory for the session, so the suite
-leaves nothing in the user's home (set ``PTAM_TEST_CACHE_DIR`` to keep renders between sessions)."""
+leaves nothing in the user's home (set ``PTAM_TEST_CACHE_DIR`` to keep renders between sessions). Run two at a time
+(pytest-xdist), the workers share the main process's directory: each rendering its own, they rendered a sequence
+two tests on different workers use twice (desk_blur: 140 s each)."""
 
 from __future__ import annotations
 
@@ -14,11 +16,15 @@ from ptam.synthetic.sequence import CACHE_ENV
 _created: list[str] = []
 
 
+_SESSION_CACHE_ENV = "PTAM_TEST_SESSION_CACHE_DIR"  # the main process's directory, inherited by the workers
+
+
 def pytest_configure(config: pytest.Config) -> None:
-    cache = os.environ.get("PTAM_TEST_CACHE_DIR")
+    cache = os.environ.get("PTAM_TEST_CACHE_DIR") or os.environ.get(_SESSION_CACHE_ENV)
     if not cache:
         cache = tempfile.mkdtemp(prefix="ptam-test-cache-")
         _created.append(cache)
+        os.environ[_SESSION_CACHE_ENV] = cache
     os.environ[CACHE_ENV] = cache
 
 

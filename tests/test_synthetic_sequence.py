@@ -1,6 +1,9 @@
 """Rendered sequences on disk: TUM layout, cache behaviour, lossless video, and ``ptam synth``."""
 
 import dataclasses
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
 
 import cv2
 import numpy as np
@@ -108,3 +111,25 @@ def test_cli_synth_then_eval_reports_zero_error(tiny, tmp_path, monkeypatch, cap
     assert cli_main(["synth", "no_such_scene", str(tmp_path / "o2")]) == 2
     assert capsys.readouterr().err.count("\n") == 1
     assert cli_main(["synth", str(tiny)]) == 2
+
+
+def test_a_scene_wanted_by_two_runs_at_once_is_rendered_once(tiny, tmp_path, monkeypatch):
+    """Two runs (or the suite's two workers) asking for the same scene: the second waits for the first's render."""
+    real = sequence.write_sequence
+    calls = []
+    started = threading.Event()
+
+    def slow(*a, **k):
+        calls.append(1)
+        started.set()
+        time.sleep(0.5)  # the second caller arrives while this render is under way
+        return real(*a, **k)
+
+    monkeypatch.setattr(sequence, "write_sequence", slow)
+    with ThreadPoolExecutor(2) as pool:
+        first = pool.submit(ensure_sequence, tiny, _synth(tmp_path / "cache"))
+        started.wait()
+        second = pool.submit(ensure_sequence, tiny, _synth(tmp_path / "cache"))
+        assert first.result() == second.result()
+    assert len(calls) == 1
+    assert [p.name for p in (tmp_path / "cache" / "synthetic").iterdir()] == [first.result().name]
