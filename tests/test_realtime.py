@@ -24,12 +24,14 @@ class _Source:
 
 
 def test_a_fast_consumer_gets_every_frame_at_the_source_rate():
-    feed = RealtimeFeed(_Source(20, 200.0))
+    # A camera's rate: at 200 fps a 5 ms scheduling delay (the suite's other worker busy on both cores) dropped
+    # frames the consumer would have taken in time.
+    feed = RealtimeFeed(_Source(20, 30.0))
     t0 = time.perf_counter()
     got = [f.index for f in feed]
     elapsed = time.perf_counter() - t0
     assert got == list(range(20)) and feed.dropped == 0
-    assert elapsed >= 19 / 200.0 * 0.9  # paced, not read as fast as possible
+    assert elapsed >= 19 / 30.0 * 0.9  # paced, not read as fast as possible
 
 
 def test_a_slow_consumer_sees_the_newest_frames_and_the_drops_are_counted():
