@@ -35,6 +35,7 @@ from ..errors import InputError, PtamError
 from ..geometry import se3
 from ..vocabulary import TrackingState
 from .augmenter import Augmenter
+from .kernel_warm_up import warm_overlay_kernels
 from .scenes import SCENES
 from .video_writer import open_video_writer
 
@@ -75,6 +76,7 @@ class ArLayer:
         fps: float | None = None,
         T_pw: np.ndarray | None = None,
     ):
+        warm_overlay_kernels(camera, cfg)  # here, not on the first frame: that is when the map is youngest
         self.augmenter = Augmenter(camera, cfg, scene, T_pw)
         self.capacity = max(int(cfg.ar.queue_frames), 1)
         fps = cfg.capture.default_fps if fps is None else fps
