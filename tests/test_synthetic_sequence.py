@@ -133,3 +133,12 @@ def test_a_scene_wanted_by_two_runs_at_once_is_rendered_once(tiny, tmp_path, mon
         assert first.result() == second.result()
     assert len(calls) == 1
     assert [p.name for p in (tmp_path / "cache" / "synthetic").iterdir()] == [first.result().name]
+
+
+def test_a_cache_on_a_file_system_without_locks_still_renders(tiny, tmp_path, monkeypatch):
+    def no_locks(*a):
+        raise OSError(37, "No locks available")
+
+    monkeypatch.setattr(sequence.fcntl, "flock", no_locks)
+    d = ensure_sequence(tiny, _synth(tmp_path / "cache"))
+    assert np.array_equal(_frames(d, 6)[2], load_scene(tiny).render_frame(2))

@@ -147,15 +147,30 @@ def _rendering(lock_path: Path) -> Iterator[None]:
     """Held while a scene is rendered into the cache: a second process that wants the same scene (two runs, or the
     test suite's two workers) waits for the first render instead of repeating it (desk_blur: 140 s on two cores).
     The lock is the kernel's (flock), so a killed render leaves no stale lock behind; its file is removed with the
-    lock held, which is safe because whoever takes a lock next looks for the rendered entry before rendering."""
-    with open(lock_path, "a") as f:
-        fcntl.flock(f, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
+    lock held, which is safe because whoever takes a lock next looks for the rendered entry before rendering.
+    Where the file system cannot lock (some network mounts) the render goes ahead unlocked: the atomic rename keeps
+    the cache whole, and two processes may then both render."""
+    fd = _lock(lock_path)
+    try:
+        yield
+    finally:
+        if fd is not None:
             with contextlib.suppress(OSError):
                 os.unlink(lock_path)
-            fcntl.flock(f, fcntl.LOCK_UN)
+            os.close(fd)  # releases the lock
+
+
+def _lock(path: Path) -> int | None:
+    """A descriptor of ``path`` locked exclusively (waiting for another holder), or None where it cannot be locked."""
+    fd = None
+    try:
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT, _FILE_MODE)
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        return fd
+    except OSError:
+        if fd is not None:
+            os.close(fd)
+        return None
 
 
 def _render_into(scene: Scene, root: Path, final: Path, video: bool, threads: int) -> None:
