@@ -123,7 +123,8 @@ def test_desk_blur_with_edgelets():
     blur-aware tracker carries it through (Agility §5, §8): patches the expected blur smears past recognition are not
     searched (``tracking.patch_blur``), and edgelets with a wide search range join the coarse stage. Markedly more
     frames right, no wrong ones, and the trajectory stays millimetre-accurate. Edgelets' own share: beside the
-    blur gate, points alone are right nearly as often, but edgelets remove the last wrong poses and halve the ATE."""
+    blur gate (and a patch match that must beat a flat window), points alone are right nearly as often, and
+    edgelets make every frame right and cut the ATE by a quarter or more."""
     d = sequence("desk_blur")
     on, system = _run(d, config())
     points, _ = _run(d, load_config(overrides=["edgelets.enabled=false"]))
@@ -147,7 +148,9 @@ def test_desk_blur_fast_edgelets_hold_the_sweeps():
     poor, or bad under rapid motion, and their poses would be withheld. Where the edgelets held (found as a good
     frame's patches are, ``system.report_edgelet_held_poses``) the pose is reported, and it is right: markedly more
     frames correct than points alone, none wrong. With the switch off the same tracker withholds those frames again,
-    which shows the frames gained are those."""
+    which shows the frames gained are those. Points alone, whose wild poses were chance matches of faint templates
+    (10.7 mm before a patch match had to beat a flat window), are now nearly as accurate on the frames they report;
+    edgelets still report more frames, none wrong, at a lower ATE."""
     d = sequence("desk_blur_fast")
     on, _ = _run(d, config())
     withheld, _ = _run(d, load_config(overrides=["system.report_edgelet_held_poses=false"]))
@@ -160,4 +163,4 @@ def test_desk_blur_fast_edgelets_hold_the_sweeps():
     assert on.correct_fraction >= max(points.correct_fraction + 0.04, 0.97)
     assert on.correct_fraction >= withheld.correct_fraction + 0.03
     assert on.glitches == 0 and withheld.glitches == 0
-    assert 1e3 * on.ate_rmse_m < 4.0 and on.ate_rmse_m < 0.5 * points.ate_rmse_m
+    assert 1e3 * on.ate_rmse_m < 2.0 and on.ate_rmse_m < points.ate_rmse_m

@@ -2,6 +2,7 @@
 
 import cv2
 import numpy as np
+import pytest
 
 from ptam.image.pyramid import row_lut
 from ptam.patch.search_kernels import search_patches
@@ -32,6 +33,13 @@ def _pyramid(rng):
     return levels, tuple(corners), tuple(luts)
 
 
+def _window(img, xy):
+    """The zero-mean 8x8 window whose centre pixel (PTAM's convention: x - 4 ... x + 3) is ``xy``."""
+    x, y = xy
+    win = img[y - SIZE // 2 : y + SIZE // 2, x - SIZE // 2 : x + SIZE // 2].astype(np.float64)
+    return win - win.mean()
+
+
 def test_make_templates_matches_reference():
     rng = np.random.default_rng(0)
     kf_images = tuple(np.stack([_texture(rng, 120 >> L, 160 >> L, 1.0) for _ in range(3)]) for L in range(3))
@@ -55,7 +63,8 @@ def test_make_templates_matches_reference():
     assert ok1[0] and np.allclose(t1[0], win - win.mean(), atol=1e-3)
 
 
-def test_search_patches_matches_reference_and_finds_the_source():
+@pytest.mark.parametrize("flat_fraction", [np.inf, 1.0])
+def test_search_patches_matches_reference_and_finds_the_source(flat_fraction):
     rng = np.random.default_rng(1)
     levels, corners, luts = _pyramid(rng)
     n = 400
@@ -75,11 +84,14 @@ def test_search_patches_matches_reference_and_finds_the_source():
     center = truth + rng.integers(-4, 5, (n, 2))
     radius = np.full(n, 6, np.int32)
     max_ssd = 500.0 * SIZE * SIZE
-    best, score, found = search_patches(levels, corners, luts, t, level, center.astype(np.int32), radius, max_ssd)
-    best_r, score_r, found_r = search_patches_ref(levels, corners, t, level, center, radius, max_ssd)
+    args = (t, level, center.astype(np.int32), radius, max_ssd, flat_fraction)
+    best, score, found = search_patches(levels, corners, luts, *args)
+    best_r, score_r, found_r = search_patches_ref(levels, corners, *args)
     # The kernel sums in float32 (exact for ΣI and ΣI², rounded in ΣI·T): scores agree to a fraction of a grey
     # level squared, so acceptance may differ only right at the threshold.
-    clear = np.abs(score_r - max_ssd) > 1.0
+    energy = (t.astype(np.float64) ** 2).sum(axis=(1, 2))
+    limit = np.minimum(max_ssd, flat_fraction * energy) if np.isfinite(flat_fraction) else np.full(n, max_ssd)
+    clear = np.abs(score_r - limit) > 1.0
     assert np.array_equal(found[clear], found_r[clear])
     both = found & found_r
     assert np.allclose(score[both], score_r[both], rtol=1e-5, atol=0.5)
@@ -87,6 +99,29 @@ def test_search_patches_matches_reference_and_finds_the_source():
     inside = ok & (((truth - center) ** 2).sum(axis=1) <= 36)
     assert inside.sum() > 200
     assert np.array_equal(best[inside], truth[inside]) and np.all(score[inside] < 0.5)
+
+
+def test_a_faint_template_is_found_at_its_source_but_not_in_unrelated_texture():
+    """A template fainter than PTAM's absolute limit (grey-level std 12, 144 < 500 per pixel) matches any
+    corner of similar faintness under that limit alone; below its own energy (what a flat window scores) only
+    its source passes."""
+    rng = np.random.default_rng(3)
+    img = np.clip(128 + rng.normal(0, 12, (120, 160)), 0, 255).astype(np.uint8)
+    ys, xs = np.mgrid[8:112:3, 8:152:3]
+    corners = np.stack([xs.ravel(), ys.ravel()], axis=1).astype(np.int32)
+    levels, corners_t, luts = (img,), (corners,), (row_lut(corners, img.shape[0]),)
+    source = corners[len(corners) // 2]
+    n = 200
+    other = np.clip(128 + rng.normal(0, 12, (n, SIZE, SIZE)), 0, 255)
+    templates = np.concatenate([_window(img, source)[None], other - other.mean(axis=(1, 2), keepdims=True)])
+    templates = templates.astype(np.float32)
+    center = np.broadcast_to(source, (n + 1, 2)).astype(np.int32).copy()
+    args = (templates, np.zeros(n + 1, np.int32), center, np.full(n + 1, 12, np.int32), 500.0 * SIZE * SIZE)
+    _, _, ptam_found = search_patches(levels, corners_t, luts, *args, np.inf)
+    best, score, found = search_patches(levels, corners_t, luts, *args, 1.0)
+    assert ptam_found[0] and found[0] and np.array_equal(best[0], source) and score[0] < 0.5
+    assert ptam_found[1:].mean() > 0.9  # the unrelated templates: chance matches under the absolute limit
+    assert not found[1:].any()
 
 
 def test_refine_subpix_matches_reference_and_recovers_shifts():

@@ -1,5 +1,7 @@
 """Tracker parts: motion model, tracking quality, patch warp geometry, the patch finder, degenerate inputs."""
 
+from dataclasses import replace
+
 import cv2
 import numpy as np
 import pytest
@@ -116,6 +118,45 @@ def test_patch_finder_finds_a_shifted_textured_patch():
     print(f"patch finder: found {m.found.sum()}/{n}, median error {np.median(err):.3f} px (level 0)")
     assert m.attempted.all() and m.found.mean() > 0.6 and m.subpix[m.found].all()
     assert np.median(err) < 0.15
+
+
+def _noise_patches(finder, kf_pyr, pyr, L, rng):
+    """Every 3rd level-L corner of the keyframe, searched at level L of ``pyr`` within the coarse stage's 30 px of
+    its own position."""
+    c = kf_pyr.corners[L]
+    h, w = kf_pyr.levels[L].shape
+    src = c[(c[:, 0] > 8) & (c[:, 0] < w - 8) & (c[:, 1] > 8) & (c[:, 1] < h - 8)][::3]
+    n = len(src)
+    at0 = (src + 0.5) * 2**L - 0.5
+    return finder.find(
+        pyr,
+        tuple(im[None] for im in kf_pyr.levels),
+        np.zeros(n, np.int32),
+        np.full(n, L, np.int8),
+        src.astype(np.float64),
+        np.broadcast_to(np.eye(2), (n, 2, 2)).copy(),
+        np.full(n, L, np.int32),
+        at0 + rng.uniform(-3, 3, (n, 2)),
+        float(CFG.tracker.coarse_radius_px),
+        np.ones(n, bool),
+    )
+
+
+@pytest.mark.parametrize("L", [2, 3])
+def test_patch_finder_finds_no_chance_matches_in_white_noise(L):
+    """White noise averages down to a grey-level std of 9-18 at levels 2-3, so its templates are fainter than
+    PTAM's absolute limit and, under that limit alone, match some corner of any other noise image (found
+    30-40 % in a tracker, all by chance). In the keyframe itself each is found at its source."""
+    rng = np.random.default_rng(4)
+    kf_pyr, pyr = (Pyramid.build(rng.integers(0, 256, (480, 640), dtype=np.uint8), CFG.image) for _ in range(2))
+    ptam_only = PatchFinder(replace(CFG.patch, max_ssd_template_fraction=np.inf))
+    chance = _noise_patches(ptam_only, kf_pyr, pyr, L, rng).found.mean()
+    m = _noise_patches(PatchFinder(CFG.patch), kf_pyr, pyr, L, rng)
+    itself = _noise_patches(PatchFinder(CFG.patch), kf_pyr, kf_pyr, L, rng)
+    print(f"level {L}: {len(m.found)} patches; PTAM's limit alone finds {chance:.1%}, ptam {m.found.mean():.1%}")
+    assert m.attempted.all() and len(m.found) >= 30
+    assert chance > 0.2 and m.found.mean() < 0.02
+    assert itself.found.mean() > 0.95
 
 
 def test_tracker_without_map_and_with_frame_input():

@@ -53,6 +53,7 @@ class ImageConfig:
 class PatchConfig:
     size: Annotated[int, Range("[2, inf)")]
     max_ssd_per_pixel: Annotated[float, Range("(0, inf)")]
+    max_ssd_template_fraction: Annotated[float, Range("(0, inf]")]
     det_min: Annotated[float, Range("(0, inf)")]
     det_max: Annotated[float, Range("(0, inf)")]
     subpix_iterations: Annotated[int, Range("[0, inf)")]

@@ -44,6 +44,7 @@ class PatchFinder:
     def __init__(self, patch_cfg):
         self.cfg = patch_cfg
         self.max_ssd = float(patch_cfg.max_ssd_per_pixel) * patch_cfg.size * patch_cfg.size
+        self.flat_fraction = float(patch_cfg.max_ssd_template_fraction)
 
     def find(
         self,
@@ -83,7 +84,9 @@ class PatchFinder:
         center = np.rint((predicted_xy[ok] + 0.5) / scale[:, None] - 0.5).astype(np.int32)
         radius = np.ceil(radius_px / scale - 1e-9).astype(np.int32)
         levels, corners, luts = frozen(pyramid.levels), frozen(pyramid.corners), frozen(pyramid.row_lut)
-        best, _, hit = search_patches(levels, corners, luts, templates[ok], lvl, center, radius, self.max_ssd)
+        best, _, hit = search_patches(
+            levels, corners, luts, templates[ok], lvl, center, radius, self.max_ssd, self.flat_fraction
+        )
         pos = best.astype(np.float64)
         refine = np.flatnonzero(hit & subpix[ok])
         if len(refine):

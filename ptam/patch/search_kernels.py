@@ -3,7 +3,10 @@
 For each patch the candidate corners are read from its search level's corner list through the row look-up
 table (PTAM §6.5) and kept when inside the circle of ``radius`` around ``center``. The zero-mean SSD with the
 (already zero-mean) template is ΣI² − (ΣI)²/N − 2ΣI·T + ΣT² (PTAM code: ``ZMSSDAtPoint``); the lowest
-score wins (the first corner in row-major order on ties) and is a match when below ``max_ssd``.
+score wins (the first corner in row-major order on ties) and is a match when below ``max_ssd`` (PTAM code) and
+below ``flat_fraction``·ΣT². ΣT² is what a flat window scores: a template whose own contrast is below PTAM's
+absolute limit is otherwise "found" at any corner that merely resembles flatness, so the best of a search
+region's chance candidates passes (white noise at pyramid levels 2-3: 30-40 % of patches found, all wrong).
 ``search_patches_ref`` is the numpy reference.
 """
 
@@ -32,11 +35,12 @@ def _zmssd(win, t, tsq):
 
 
 @njit(nogil=True, cache=True)
-def search_patches(levels, corners, row_luts, templates, level, center, radius, max_ssd):
+def search_patches(levels, corners, row_luts, templates, level, center, radius, max_ssd, flat_fraction):
     """levels/corners/row_luts: per pyramid level. center (n, 2) int and radius (n,) int at the search level.
 
-    Returns best (n, 2) int32 corner, its score (n,) and found (n,) bool. Within each row of the circle the
-    corners (sorted by x) in range are found by binary search from the row look-up table.
+    ``flat_fraction``: a match must also score below this fraction of the template's ΣT² (``inf``: PTAM's
+    absolute limit alone). Returns best (n, 2) int32 corner, its score (n,) and found (n,) bool. Within each row
+    of the circle the corners (sorted by x) in range are found by binary search from the row look-up table.
     """
     n = templates.shape[0]
     size = templates.shape[1]
@@ -85,7 +89,10 @@ def search_patches(levels, corners, row_luts, templates, level, center, radius, 
                     bs = z
                     bx = x
                     by = y
-        if bs < max_ssd:
+        limit = max_ssd
+        if flat_fraction * tsq < limit:  # nan for an all-zero template under inf: PTAM's limit stands
+            limit = flat_fraction * tsq
+        if bs < limit:
             best[k, 0] = bx
             best[k, 1] = by
             score[k] = bs

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 
-def search_patches_ref(levels, corners, templates, level, center, radius, max_ssd):
+def search_patches_ref(levels, corners, templates, level, center, radius, max_ssd, flat_fraction=np.inf):
     """Numpy reference: every corner of the level scored by broadcasting, then the circle and the minimum."""
     n, size = templates.shape[:2]
     h = size // 2
@@ -29,7 +29,10 @@ def search_patches_ref(levels, corners, templates, level, center, radius, max_ss
                 continue
             z = ((win[cand] - templates[k].astype(np.float64)) ** 2).sum(axis=(1, 2))
             j = int(np.argmin(z))
-            if z[j] < max_ssd:
+            flat = (
+                flat_fraction * (templates[k].astype(np.float64) ** 2).sum() if np.isfinite(flat_fraction) else np.inf
+            )
+            if z[j] < min(max_ssd, flat):
                 best[k] = c[cand[j]]
                 score[k] = z[j]
                 found[k] = True
