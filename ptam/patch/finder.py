@@ -90,20 +90,22 @@ class PatchFinder:
         pos = best.astype(np.float64)
         refine = np.flatnonzero(hit & subpix[ok])
         if len(refine):
-            pos_r, converged = refine_subpix(
-                levels,
-                templates[ok[refine]],
-                lvl[refine],
-                pos[refine],
-                int(cfg.subpix_iterations),
-                float(cfg.subpix_converge_px),
-            )
+            converged = self._refine(levels, templates[ok[refine]], lvl[refine], pos, refine, require_converged)
             if require_converged:
                 hit[refine] = converged
                 unconverged[ok[refine]] = ~converged
-                pos_r[~converged] = pos[refine[~converged]]
-            pos[refine] = pos_r
             did_subpix[ok[refine]] = converged
         found[ok] = hit
         xy[ok] = (pos + 0.5) * scale[:, None] - 0.5
         return PatchMatches(attempted, found, xy, did_subpix, unconverged)
+
+    def _refine(self, levels, templates, lvl, pos, refine, require_converged: bool) -> np.ndarray:
+        """Sub-pixel refinement of the matches ``pos[refine]`` in place; a refinement that did not converge
+        leaves its integer match when ``require_converged``. Returns which converged."""
+        pos_r, converged = refine_subpix(
+            levels, templates, lvl, pos[refine], int(self.cfg.subpix_iterations), float(self.cfg.subpix_converge_px)
+        )
+        if require_converged:
+            pos_r[~converged] = pos[refine[~converged]]
+        pos[refine] = pos_r
+        return converged
