@@ -81,6 +81,23 @@ def test_patch_seen_from_its_source_keyframe_has_identity_template_warp():
     assert np.array_equal(finer[level > 0], level[level > 0] - 1)
 
 
+def _find_at_level(finder, kf_pyr, pyr, L, src, predicted_xy, radius_px):
+    """Level-L keyframe corners ``src`` searched at level L of ``pyr`` around level-0 ``predicted_xy``."""
+    n = len(src)
+    return finder.find(
+        pyr,
+        tuple(im[None] for im in kf_pyr.levels),
+        np.zeros(n, np.int32),
+        np.full(n, L, np.int8),
+        src.astype(np.float64),
+        np.broadcast_to(np.eye(2), (n, 2, 2)).copy(),
+        np.full(n, L, np.int32),
+        predicted_xy,
+        radius_px,
+        np.ones(n, bool),
+    )
+
+
 def test_patch_finder_finds_a_shifted_textured_patch():
     rng = np.random.default_rng(3)
     base = cv2.GaussianBlur(rng.uniform(0, 255, (480, 640)).astype(np.float32), (0, 0), 2.0)
@@ -100,20 +117,7 @@ def test_patch_finder_finds_a_shifted_textured_patch():
     ][::7][:200]
     n = len(src)
     truth0 = (src + 0.5) * 2 - 0.5 + shift
-    finder = PatchFinder(CFG.patch)
-    kf_images = tuple(im[None] for im in kf_pyr.levels)
-    m = finder.find(
-        pyr,
-        kf_images,
-        np.zeros(n, np.int32),
-        np.full(n, L, np.int8),
-        src.astype(np.float64),
-        np.broadcast_to(np.eye(2), (n, 2, 2)).copy(),
-        np.full(n, L, np.int32),
-        truth0 + rng.uniform(-5, 5, (n, 2)),
-        10.0,
-        np.ones(n, bool),
-    )
+    m = _find_at_level(PatchFinder(CFG.patch), kf_pyr, pyr, L, src, truth0 + rng.uniform(-5, 5, (n, 2)), 10.0)
     err = np.linalg.norm(m.xy[m.found] - truth0[m.found], axis=1)
     print(f"patch finder: found {m.found.sum()}/{n}, median error {np.median(err):.3f} px (level 0)")
     assert m.attempted.all() and m.found.mean() > 0.6 and m.subpix[m.found].all()
@@ -126,20 +130,8 @@ def _noise_patches(finder, kf_pyr, pyr, L, rng):
     c = kf_pyr.corners[L]
     h, w = kf_pyr.levels[L].shape
     src = c[(c[:, 0] > 8) & (c[:, 0] < w - 8) & (c[:, 1] > 8) & (c[:, 1] < h - 8)][::3]
-    n = len(src)
-    at0 = (src + 0.5) * 2**L - 0.5
-    return finder.find(
-        pyr,
-        tuple(im[None] for im in kf_pyr.levels),
-        np.zeros(n, np.int32),
-        np.full(n, L, np.int8),
-        src.astype(np.float64),
-        np.broadcast_to(np.eye(2), (n, 2, 2)).copy(),
-        np.full(n, L, np.int32),
-        at0 + rng.uniform(-3, 3, (n, 2)),
-        float(CFG.tracker.coarse_radius_px),
-        np.ones(n, bool),
-    )
+    at0 = (src + 0.5) * 2**L - 0.5 + rng.uniform(-3, 3, (len(src), 2))
+    return _find_at_level(finder, kf_pyr, pyr, L, src, at0, float(CFG.tracker.coarse_radius_px))
 
 
 @pytest.mark.parametrize("L", [2, 3])
