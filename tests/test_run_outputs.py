@@ -34,29 +34,37 @@ def _pose(x: float) -> np.ndarray:
     return T
 
 
-def _truncated(tmp_path, frames: int):
-    """The first ``frames`` frames of two_wall_short as a TUM folder (rgb.txt with absolute paths)."""
+def _two_wall_short_frames() -> tuple[Path, list[tuple[str, str]]]:
+    """two_wall_short's folder and its (timestamp, image path) rows."""
     src = sequence("two_wall_short")
-    d = tmp_path / "short"
-    d.mkdir()
     rows = [line.split() for line in (src / "rgb.txt").read_text().splitlines() if not line.startswith("#")]
-    (d / "rgb.txt").write_text("".join(f"{t} {src / p}\n" for t, p in rows[:frames]))
+    return src, [(t, p) for t, p in rows]
+
+
+def _tum_folder(tmp_path, name: str, src: Path, rows) -> Path:
+    """A TUM folder of ``src``'s images: rgb.txt of ``rows`` with absolute paths, and its camera."""
+    d = tmp_path / name
+    d.mkdir()
+    (d / "rgb.txt").write_text("".join(f"{t} {src / p}\n" for t, p in rows))
     (d / "camera.yaml").write_text((src / "camera.yaml").read_text())
     return d
+
+
+def _truncated(tmp_path, frames: int):
+    """The first ``frames`` frames of two_wall_short as a TUM folder."""
+    src, rows = _two_wall_short_frames()
+    return _tum_folder(tmp_path, "short", src, rows[:frames])
 
 
 def _there_and_back(tmp_path) -> tuple[Path, int]:
     """two_wall_short forward then backward (frame rate kept, timestamps increasing), as a TUM folder, and its frame
     count: 13.3 s of continuous motion, so a signal test on a loaded machine, where the map comes late, still has
     sequence left to interrupt (two_wall_short alone once ended before the kill)."""
-    src = sequence("two_wall_short")
-    d = tmp_path / "there_and_back"
-    d.mkdir()
-    paths = [line.split()[1] for line in (src / "rgb.txt").read_text().splitlines() if not line.startswith("#")]
+    src, rows = _two_wall_short_frames()
+    paths = [p for _, p in rows]
     paths = paths + paths[-2:0:-1]
-    (d / "rgb.txt").write_text("".join(f"{i / FPS:.6f} {src / p}\n" for i, p in enumerate(paths)))
-    (d / "camera.yaml").write_text((src / "camera.yaml").read_text())
-    return d, len(paths)
+    rows = [(f"{i / FPS:.6f}", p) for i, p in enumerate(paths)]
+    return _tum_folder(tmp_path, "there_and_back", src, rows), len(rows)
 
 
 def _outputs(tmp_path) -> dict:
