@@ -5,9 +5,12 @@ two tests on different workers use twice (desk_blur: 140 s each)."""
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import os
 import shutil
 import tempfile
+from collections.abc import Iterator
 
 import pytest
 
@@ -26,6 +29,35 @@ def pytest_configure(config: pytest.Config) -> None:
         _created.append(cache)
         os.environ[_SESSION_CACHE_ENV] = cache
     os.environ[CACHE_ENV] = cache
+
+
+@contextlib.contextmanager
+def _cores(alone: bool) -> Iterator[None]:
+    """A readers-writer lock over the machine's cores, shared by the xdist workers through the session directory:
+    every test holds it shared, a test marked ``alone`` holds it exclusively. The turnstile (taken by both, held by
+    a waiting ``alone`` test) lets the ``alone`` test in once the test already running ends, instead of after every
+    test the other worker starts meanwhile."""
+    directory = os.environ[CACHE_ENV]
+    with (
+        open(os.path.join(directory, ".cores-turnstile.lock"), "a") as turnstile,
+        open(os.path.join(directory, ".cores.lock"), "a") as cores,
+    ):
+        fcntl.flock(turnstile, fcntl.LOCK_EX)
+        try:
+            fcntl.flock(cores, fcntl.LOCK_EX if alone else fcntl.LOCK_SH)
+        finally:
+            fcntl.flock(turnstile, fcntl.LOCK_UN)
+        try:
+            yield
+        finally:
+            fcntl.flock(cores, fcntl.LOCK_UN)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None):
+    # Realtime runs race the wall clock: beside another test on a two-core machine they dropped seconds of frames.
+    with _cores(alone=item.get_closest_marker("alone") is not None):
+        return (yield)
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:

@@ -35,6 +35,7 @@ def test_motion_model_predicts_the_whole_gap(cfg):
 
 
 @pytest.mark.slow
+@pytest.mark.alone
 def test_the_map_built_beside_the_tracker_poses_every_frame_it_saw(cfg):
     """In realtime mode the first map is built in a worker while frames keep arriving; every frame from the first
     keyframe on gets a pose (PnP on its trails, then tracking), as accurate as a sync run."""

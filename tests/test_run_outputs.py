@@ -227,6 +227,7 @@ def _wait_for(condition, proc, timeout_s: float = 60.0) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.alone
 def test_sigkill_leaves_the_trajectory_up_to_a_second_before_and_the_last_checkpoint(tmp_path):
     out = _outputs(tmp_path)
     # A checkpoint at every keyframe: with one every two, on a loaded machine (the tests run two at a time) the first
@@ -257,6 +258,7 @@ def test_sigkill_leaves_the_trajectory_up_to_a_second_before_and_the_last_checkp
 
 
 @pytest.mark.slow
+@pytest.mark.alone
 def test_sighup_ends_a_run_like_sigterm_and_writes_every_output(tmp_path):
     out = _outputs(tmp_path)
     proc = _start(tmp_path, out)
