@@ -53,6 +53,12 @@ def _cores(alone: bool) -> Iterator[None]:
             fcntl.flock(cores, fcntl.LOCK_UN)
 
 
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    # ``alone`` tests last: one waits for the other worker's current test to end, which early in the run may be a
+    # long render; at the end that worker's tail is the run's anyway.
+    items.sort(key=lambda item: item.get_closest_marker("alone") is not None)
+
+
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None):
     # Realtime runs race the wall clock: beside another test on a two-core machine they dropped seconds of frames.
