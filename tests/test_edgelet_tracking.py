@@ -149,12 +149,17 @@ def test_desk_blur_fast_edgelets_hold_the_sweeps():
     frame's patches are, ``system.report_edgelet_held_poses``) the pose is reported, and it is right: markedly more
     frames correct than points alone, none wrong. With the switch off the same tracker withholds those frames again,
     which shows the frames gained are those. Points alone, whose wild poses were chance matches of faint templates
-    (10.7 mm before a patch match had to beat a flat window), are now nearly as accurate on the frames they report;
-    edgelets still report more frames, none wrong, at a lower ATE."""
+    (10.7 mm before a patch match had to beat a flat window), now report only frames they get right; edgelets
+    report more, none wrong, and on the frames both report they are the more accurate. (Over all its frames the
+    edgelets' ATE includes the sweeps, which points alone withhold: measured 1.75 mm against points' 0.58, and
+    0.32 mm on the points' own frames.)"""
     d = sequence("desk_blur_fast")
-    on, _ = _run(d, config())
+    on, on_system = _run(d, config())
     withheld, _ = _run(d, load_config(overrides=["system.report_edgelet_held_poses=false"]))
-    points, _ = _run(d, load_config(overrides=["edgelets.enabled=false"]))
+    points, points_system = _run(d, load_config(overrides=["edgelets.enabled=false"]))
+    reported = {pose[0] for pose in points_system.trajectory}
+    both = [pose for pose in on_system.trajectory if pose[0] in reported]
+    on_both = score_trajectory(d / "groundtruth.txt", both, criteria=criteria(config()))
     for name, s in (("edgelets", on), ("edgelets, held frames withheld", withheld), ("points only", points)):
         print(
             f"desk_blur_fast {name}: correct {s.correct_fraction:.3f}, ATE {1e3 * s.ate_rmse_m:.2f} mm, "
@@ -163,4 +168,9 @@ def test_desk_blur_fast_edgelets_hold_the_sweeps():
     assert on.correct_fraction >= max(points.correct_fraction + 0.04, 0.97)
     assert on.correct_fraction >= withheld.correct_fraction + 0.03
     assert on.glitches == 0 and withheld.glitches == 0
-    assert 1e3 * on.ate_rmse_m < 2.0 and on.ate_rmse_m < points.ate_rmse_m
+    print(
+        f"desk_blur_fast edgelets on the {on_both.matched} frames points alone report: "
+        f"ATE {1e3 * on_both.ate_rmse_m:.2f} mm"
+    )
+    assert on_both.matched == points.matched
+    assert 1e3 * on.ate_rmse_m < 2.0 and on_both.ate_rmse_m < points.ate_rmse_m
