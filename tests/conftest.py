@@ -1,7 +1,7 @@
 """Shared test setup: the synthetic-sequence cache lives in a temporary directory for the session, so the suite
 leaves nothing in the user's home (set ``PTAM_TEST_CACHE_DIR`` to keep renders between sessions). Run two at a time
 (pytest-xdist), the workers share the main process's directory: each rendering its own, they rendered a sequence
-two tests on different workers use twice (desk_blur: 140 s each)."""
+two tests on different workers use twice (desk_blur: 65 s each)."""
 
 from __future__ import annotations
 

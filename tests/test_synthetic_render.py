@@ -173,7 +173,7 @@ def test_sensor_effects():
                 "black_frames": [[3, 4]],
                 "brightness": {"amplitude": 0.2, "period_s": 1.0},
                 "noise": {"sigma": 3.0, "seed": 7},
-                "motion_blur": {"subframes": 5, "exposure": 0.8},
+                "motion_blur": {"subframes": 5, "exposure": 0.8, "max_step_px": 0},  # every sub-frame
             },
         },
     )

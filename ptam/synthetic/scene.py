@@ -18,7 +18,9 @@ Scene file layout (YAML; see ``data/synthetic/two_wall.yaml``)::
       background: 0                # grey level of rays that hit nothing
       optics_blur_px: 1.0          # Gaussian point-spread function of lens and sensor (sigma, pixels)
       noise: {sigma: 2.0, seed: 1}                  # additive Gaussian pixel noise (grey levels)
-      motion_blur: {subframes: 4, exposure: 0.5}    # exposure as a fraction of the frame interval, centred
+      motion_blur: {subframes: 4, exposure: 0.5}    # exposure as a fraction of the frame interval, centred;
+                                                    # max_step_px (default 1): fewer sub-frames where the image
+                                                    # moves less (ptam/synthetic/motion_blur.py), 0: always all
       brightness: {amplitude: 0.05, period_s: 8.0}  # gain 1 + A·sin(2π t / period)
       black_frames: [[300, 309]]                    # inclusive frame ranges rendered black
 
@@ -36,6 +38,7 @@ import numpy as np
 
 from ..camera import camera_from_dict
 from ..errors import InputError
+from .motion_blur import probe_rays, smear_px, subframe_count
 from .rectangle import Rectangle, rectangle_from_spec
 from .render import Renderer
 from .render_kernels import intersect_rays
@@ -44,6 +47,7 @@ from .texture import check_texture, image_digest
 from .trajectory import Jitter, KeyPose, Trajectory, look_at, path_length
 
 RENDER_DEFAULTS = {"supersample": 2, "background": 0.0}
+BLUR_STEP_PX = 1.0  # motion_blur.max_step_px: sub-frames a pixel apart draw a continuous smear
 _TOP_KEYS = {"description", "camera", "frames", "fps", "start_time", "rectangles", "trajectory", "render"}
 _RENDER_KEYS = {"supersample", "background", "optics_blur_px", "noise", "motion_blur", "brightness", "black_frames"}
 
@@ -177,6 +181,7 @@ class Scene:
         self.poses_T_wc = self.trajectory.poses(np.arange(self.n_frames, dtype=np.float64))
         self._read_render(spec, where)
         self._renderer = None
+        self._probe_rays = probe_rays(self.camera)
         self._lock = threading.Lock()
 
     def _read_render(self, spec: dict, where: str) -> None:
@@ -190,9 +195,10 @@ class Scene:
         noise = _mapping(r, "noise", wr, {"sigma", "seed"})
         self.noise_sigma = _num(noise, "sigma", f"{wr}.noise", lo=0.0, default=0.0)
         self.noise_seed = _num(noise, "seed", f"{wr}.noise", lo=0, integer=True, default=0)
-        blur = _mapping(r, "motion_blur", wr, {"subframes", "exposure"})
+        blur = _mapping(r, "motion_blur", wr, {"subframes", "exposure", "max_step_px"})
         self.blur_subframes = _num(blur, "subframes", f"{wr}.motion_blur", lo=1, hi=64, integer=True, default=1)
         self.blur_exposure = _num(blur, "exposure", f"{wr}.motion_blur", lo=0.0, hi=1.0, default=0.0)
+        self.blur_step_px = _num(blur, "max_step_px", f"{wr}.motion_blur", lo=0.0, default=BLUR_STEP_PX)
         bright = _mapping(r, "brightness", wr, {"amplitude", "period_s"})
         self.brightness_amplitude = _num(bright, "amplitude", f"{wr}.brightness", lo=0.0, hi=1.0, default=0.0)
         self.brightness_period = _num(bright, "period_s", f"{wr}.brightness", lo=1e-3, default=1.0)
@@ -226,12 +232,21 @@ class Scene:
         return path_length(self.poses_T_wc)
 
     def subframe_poses(self, i: int) -> np.ndarray:
-        """T_wc (P, 4, 4) of the motion-blur sub-frames of frame i, spread evenly over the exposure."""
+        """T_wc (P, 4, 4) of the motion-blur sub-frames of frame i, spread evenly over the exposure: as many as its
+        image motion needs (``motion_blur``), at most ``subframes``."""
         P = self.blur_subframes
         if P == 1 or self.blur_exposure == 0.0:
             return self.poses_T_wc[i : i + 1]
-        t = i + (np.arange(P) / (P - 1) - 0.5) * self.blur_exposure
-        return self.trajectory.poses(t)
+        full = self.trajectory.poses(i + (np.arange(P) / (P - 1) - 0.5) * self.blur_exposure)
+        if self.blur_step_px == 0.0:
+            return full
+        smear = smear_px(self.camera, self._packed, self._probe_rays, self.poses_T_wc[i], full)
+        n = subframe_count(smear, self.blur_step_px, P)
+        if n == P:
+            return full
+        if n == 1:
+            return self.poses_T_wc[i : i + 1]
+        return self.trajectory.poses(i + (np.arange(n) / (n - 1) - 0.5) * self.blur_exposure)
 
     def render_view(self, poses_T_wc: np.ndarray) -> np.ndarray:
         """Noise-free float32 (H, W) image seen from the sub-frame poses (P, 4, 4), through the optics."""

@@ -145,7 +145,7 @@ def ensure_sequence(name_or_path: str | os.PathLike, cfg: SyntheticConfig, video
 @contextlib.contextmanager
 def _rendering(lock_path: Path) -> Iterator[None]:
     """Held while a scene is rendered into the cache: a second process that wants the same scene (two runs, or the
-    test suite's two workers) waits for the first render instead of repeating it (desk_blur: 140 s on two cores).
+    test suite's two workers) waits for the first render instead of repeating it (desk_blur: 65 s on two cores).
     The lock is the kernel's (flock), so a killed render leaves no stale lock behind; its file is removed with the
     lock held, which is safe because whoever takes a lock next looks for the rendered entry before rendering.
     Where the file system cannot lock (some network mounts) the render goes ahead unlocked: the atomic rename keeps

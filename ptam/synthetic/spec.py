@@ -19,7 +19,7 @@ from ..errors import InputError
 from ..resources import resource_path
 
 # Bump when the renderer or texture generator changes what a scene file renders to (invalidates caches).
-RENDER_VERSION = 3
+RENDER_VERSION = 4
 _MAX_EXTENDS_DEPTH = 8
 # The accuracy suite: desk-scale scenes unlike two_wall (pinhole and radtan lenses, photographs, repetitive
 # and plain surfaces, hand-held jitter, pauses, brightness changes, sensor noise, a 90 degree turn, 15 fps).
