@@ -6,8 +6,9 @@ import pytest
 
 from ptam.camera import PinholeCamera
 from ptam.synthetic import load_scene
-from ptam.synthetic.motion_blur import probe_rays, smear_px, subframe_count
+from ptam.synthetic.motion_blur import probe_pixels, smear_px, subframe_count
 from ptam.synthetic.rectangle import Rectangle
+from ptam.synthetic.render_kernels import intersect_rays
 from ptam.synthetic.scene import Scene
 from ptam.synthetic.spec import resolve_scene
 
@@ -25,18 +26,18 @@ def test_smear_of_a_sideways_slide_past_a_wall_is_its_image_shift():
     wall = Rectangle(
         "wall", np.array([-5.0, -5.0, 2.0]), np.array([1.0, 0, 0]), np.array([0, 1.0, 0]), (10.0, 10.0), {}
     )
-    rects = wall.packed()[None]
+    rays = cam.unproject_rays(probe_pixels(cam))
+    t, k, _, _ = intersect_rays(np.zeros(3), rays, wall.packed()[None])
+    assert np.all(k == 0)
+    X = t[:, None] * rays  # the wall points the probes see from the identity pose
     dx = 0.03
     poses = np.stack([np.eye(4)] * 7)
     poses[:, 0, 3] = np.linspace(-dx / 2, dx / 2, 7)
-    smear = smear_px(cam, rects, probe_rays(cam), np.eye(4), poses)
-    assert smear == pytest.approx(200.0 * dx / 2.0, rel=1e-9)
+    assert smear_px(cam, X, poses) == pytest.approx(200.0 * dx / 2.0, rel=1e-9)
     away = poses.copy()
     away[:, 2, 3] = np.linspace(0.0, 2.5, 7)  # through the wall: points end up behind the camera
-    assert smear_px(cam, rects, probe_rays(cam), np.eye(4), away) == np.inf
-    sky = poses.copy()
-    sky[:, 2, 3] = 3.0  # looking away from the wall, behind it: nothing hit
-    assert smear_px(cam, rects, probe_rays(cam), sky[3], sky) == 0.0
+    assert smear_px(cam, X, away) == np.inf
+    assert smear_px(cam, X[:0], poses) == 0.0  # the probes hit nothing
 
 
 def test_desk_blur_frames_render_as_with_every_subframe():

@@ -5,10 +5,10 @@ A frame's motion blur is the mean of renders at sub-frame poses spread evenly ov
 scene's ``subframes`` is the most it uses. A frame whose image hardly moves during the exposure is rendered with
 fewer: desk_blur's slow frames smear about 3 px, and drawn with five sub-frames three quarters of a pixel apart
 instead of twelve a quarter apart they change by 0.17 grey levels on average (its sensor noise is 2), at under
-half the work (``tests/test_synthetic_motion_blur.py``). The
-smear is measured on a grid of probe rays from the frame's pose: the scene points they hit, projected at every
-one of the ``subframes`` poses, give each point's image path; the longest path decides. The count is odd, so that
-one sub-frame is the frame's own (ground-truth) pose, as it is with an odd ``subframes``.
+half the work (``tests/test_synthetic_motion_blur.py``). The smear is measured on a grid of probe pixels: the scene
+points they see from the frame's pose (``Scene.raycast``), projected at every one of the ``subframes`` poses, give
+each point's image path; the longest path decides. The count is odd, so that one sub-frame is the frame's own
+(ground-truth) pose, as it is with an odd ``subframes``.
 """
 
 from __future__ import annotations
@@ -18,25 +18,21 @@ import math
 import numpy as np
 
 from ..camera import CameraModel
-from .render_kernels import intersect_rays
 
-PROBE_GRID = (17, 13)  # probe rays across the image (columns, rows), corners included
+PROBE_GRID = (17, 13)  # probe pixels across the image (columns, rows), corners included
 
 
-def probe_rays(camera: CameraModel) -> np.ndarray:
-    """(N, 3) unit camera-frame rays of the probe grid."""
+def probe_pixels(camera: CameraModel) -> np.ndarray:
+    """(N, 2) pixels of the probe grid."""
     u = np.linspace(0.0, camera.width - 1.0, PROBE_GRID[0])
     v = np.linspace(0.0, camera.height - 1.0, PROBE_GRID[1])
     uu, vv = np.meshgrid(u, v)
-    return camera.unproject_rays(np.stack([uu.ravel(), vv.ravel()], axis=-1))
+    return np.stack([uu.ravel(), vv.ravel()], axis=-1)
 
 
-def smear_px(camera: CameraModel, rects: np.ndarray, rays: np.ndarray, T_wc: np.ndarray, sub_T_wc: np.ndarray) -> float:
-    """The longest image path (px) of the scene points the probe ``rays`` hit from ``T_wc``, over the sub-frame
-    poses ``sub_T_wc`` (P, 4, 4); inf where a point leaves the front of the camera, 0 where the probes hit nothing."""
-    d = rays @ T_wc[:3, :3].T
-    t, k, _, _ = intersect_rays(T_wc[:3, 3], d, rects)
-    X = T_wc[:3, 3] + t[k >= 0, None] * d[k >= 0]
+def smear_px(camera: CameraModel, X: np.ndarray, sub_T_wc: np.ndarray) -> float:
+    """The longest image path (px) of world points ``X`` (N, 3) over the sub-frame poses ``sub_T_wc`` (P, 4, 4);
+    inf where a point leaves the front of the camera, 0 without points."""
     if not len(X):
         return 0.0
     R = sub_T_wc[:, :3, :3]

@@ -38,7 +38,7 @@ import numpy as np
 
 from ..camera import camera_from_dict
 from ..errors import InputError
-from .motion_blur import probe_rays, smear_px, subframe_count
+from .motion_blur import probe_pixels, smear_px, subframe_count
 from .rectangle import Rectangle, rectangle_from_spec
 from .render import Renderer
 from .render_kernels import intersect_rays
@@ -181,7 +181,7 @@ class Scene:
         self.poses_T_wc = self.trajectory.poses(np.arange(self.n_frames, dtype=np.float64))
         self._read_render(spec, where)
         self._renderer = None
-        self._probe_rays = probe_rays(self.camera)
+        self._probe_uv = probe_pixels(self.camera)
         self._lock = threading.Lock()
 
     def _read_render(self, spec: dict, where: str) -> None:
@@ -240,7 +240,8 @@ class Scene:
         full = self.trajectory.poses(i + (np.arange(P) / (P - 1) - 0.5) * self.blur_exposure)
         if self.blur_step_px == 0.0:
             return full
-        smear = smear_px(self.camera, self._packed, self._probe_rays, self.poses_T_wc[i], full)
+        X, _, hit = self.raycast(self.poses_T_wc[i], self._probe_uv)
+        smear = smear_px(self.camera, X[hit], full)
         n = subframe_count(smear, self.blur_step_px, P)
         if n == P:
             return full
