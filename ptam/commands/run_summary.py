@@ -47,6 +47,8 @@ def print_summary(system, mode: str, dropped: int | None, viewer=None, checkpoin
     if checkpoints:
         line += f"  checkpoints {checkpoints}"
     print(line)
+    if jobs:
+        print(_edgelet_funnel(jobs))
     if s.tracks_created > 1:  # Gauglitz §4.4-§5.3
         others = system.other_tracks
         print(
@@ -54,3 +56,12 @@ def print_summary(system, mode: str, dropped: int | None, viewer=None, checkpoin
             f"({len(system.trajectory)} frames)"
             + (f", {len(others)} unmerged with {sum(map(len, others.values()))} frames" if others else "")
         )
+
+
+def _edgelet_funnel(jobs) -> str:
+    """How many of the keyframes' edgelet candidates were left after each step of Agility §4.3, summed over the
+    run's edgelet jobs (``EdgeletJob.FUNNEL``)."""
+    counts = [sum(getattr(j, name) for j in jobs) for name in jobs[0].FUNNEL]
+    return "edgelet candidates " + " -> ".join(
+        f"{name} {n}" if i else str(n) for i, (name, n) in enumerate(zip(jobs[0].FUNNEL, counts))
+    )

@@ -28,7 +28,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass, fields
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, ClassVar
 
 import cv2
 import numpy as np
@@ -63,13 +63,31 @@ if TYPE_CHECKING:
 @dataclass(frozen=True)
 class EdgeletJob:
     """What one keyframe's edgelet job did: measurements of existing edgelets, candidates, matches measured
-    in the target, edgelets added, and its wall time (ms)."""
+    in the target, edgelets added, and its wall time (ms); and how many candidates were left after each step
+    (``FUNNEL``, summed over the target and the aperture retry's target; a retried candidate counts twice):
+    with a match on the epipolar curve, one kept by the polarity and angle culls, one measured in the target,
+    one whose planes meet at the gate or more, one that passed the check keyframe."""
 
     remeasured: int = 0
     candidates: int = 0
     hypotheses: int = 0
     added: int = 0
     ms: float = 0.0
+    matched: int = 0
+    kept: int = 0
+    measured: int = 0
+    triangulated: int = 0
+    verified: int = 0
+
+    FUNNEL: ClassVar[tuple[str, ...]] = (
+        "candidates",
+        "matched",
+        "kept",
+        "measured",
+        "triangulated",
+        "verified",
+        "added",
+    )
 
 
 @dataclass(frozen=True)
@@ -170,27 +188,30 @@ def _integrate(m: Map, camera: CameraModel, cfg: Config, k: int, t: int) -> Edge
         return EdgeletJob(remeasured)
     src = measure_in_keyframe(_image(m, k), cand.centre, cand.direction, cand.normal, e)
     src = _take(src, np.flatnonzero(src.ok))
-    hypotheses, made = _triangulate_with(m, camera, cfg, (k, t, c), src)
+    hypotheses, made, left = _triangulate_with(m, camera, cfg, (k, t, c), src)
     added = len(made)
     t2, sel = aperture_retry(m, camera, e, k, t, src) if e.aperture_retry else (-1, made[:0])
     c2 = check_keyframe(m, k, t2) if t2 >= 0 else -1
     if c2 >= 0:
         sel = np.setdiff1d(sel, made)  # candidates that became edgelets with t despite the prediction
-        h2, made2 = _triangulate_with(m, camera, cfg, (k, t2, c2), _take(src, sel))
-        hypotheses, added = hypotheses + h2, added + len(made2)
-    return EdgeletJob(remeasured, len(src.a), hypotheses, added)
+        h2, made2, left2 = _triangulate_with(m, camera, cfg, (k, t2, c2), _take(src, sel))
+        hypotheses, added, left = hypotheses + h2, added + len(made2), left + left2
+    return EdgeletJob(remeasured, len(src.a), hypotheses, added, 0.0, *left.tolist())
 
 
 def _triangulate_with(
     m: Map, camera: CameraModel, cfg: Config, kfs: tuple, src: LineMeasurements
-) -> tuple[int, np.ndarray]:
+) -> tuple[int, np.ndarray, np.ndarray]:
     """Steps 3-5 for source candidates ``src`` of keyframe k with target t and check keyframe c (``kfs``):
-    returns the hypotheses measured in t and the candidates that became edgelets."""
+    returns the hypotheses measured in t, the candidates that became edgelets, and how many candidates were left
+    after each step (``EdgeletJob``'s matched, kept, measured, triangulated, verified)."""
     k, t, c = kfs
     e = cfg.edgelets
     sm_t = smoothed(_image(m, t), e)  # Canny's input and the polarity gradient's, for this target
     hits = _epipolar_hits(m, camera, cfg, (k, t), src, sm_t)
+    matched = hits.cand
     hits = _cull(m, camera, k, t, src, hits, sm_t, e)
+    kept = hits.cand
     tgt = _measure_hits(m, t, hits, sm_t, e)
     hits, tgt = _keep(hits, tgt.ok), _take(tgt, tgt.ok)
     T = m.kf_T_cw
@@ -198,7 +219,8 @@ def _triangulate_with(
     ver = verify_edgelets(camera, T[c], _image(m, c), tri.edgelets, e)
     one = _single_hypotheses(hits.cand, tgt.a, tri.ok & ver.ok, e.hypothesis_merge_px)
     made = _add(m, camera, cfg, kfs, tri.edgelets.subset(one), (_take(src, hits.cand[one]), tgt, ver), one)
-    return len(hits.cand), hits.cand[one][made]
+    stages = (matched, kept, hits.cand, hits.cand[tri.ok], hits.cand[tri.ok & ver.ok])
+    return len(hits.cand), hits.cand[one][made], np.array([len(np.unique(x)) for x in stages], np.int64)
 
 
 def _depth_range(m: Map, cfg: Config, k: int) -> tuple[float, float]:
