@@ -64,9 +64,9 @@ if TYPE_CHECKING:
 class EdgeletJob:
     """What one keyframe's edgelet job did: measurements of existing edgelets, candidates, matches measured
     in the target, edgelets added, and its wall time (ms); and how many candidates were left after each step
-    (``FUNNEL``, summed over the target and the aperture retry's target; a retried candidate counts twice):
-    with a match on the epipolar curve, one kept by the polarity and angle culls, one measured in the target,
-    one whose planes meet at the gate or more, one that passed the check keyframe."""
+    (``FUNNEL``; a candidate counts once, with the target or with the aperture retry's): with a match on the
+    epipolar curve, one kept by the polarity and angle culls, one measured in the target, one whose planes meet
+    at the gate or more, one that passed the check keyframe."""
 
     remeasured: int = 0
     candidates: int = 0
@@ -195,16 +195,17 @@ def _integrate(m: Map, camera: CameraModel, cfg: Config, k: int, t: int) -> Edge
     if c2 >= 0:
         sel = np.setdiff1d(sel, made)  # candidates that became edgelets with t despite the prediction
         h2, made2, left2 = _triangulate_with(m, camera, cfg, (k, t2, c2), _take(src, sel))
-        hypotheses, added, left = hypotheses + h2, added + len(made2), left + left2
-    return EdgeletJob(remeasured, len(src.a), hypotheses, added, 0.0, *left.tolist())
+        hypotheses, added = hypotheses + h2, added + len(made2)
+        left = tuple(np.union1d(a, sel[b]) for a, b in zip(left, left2))
+    return EdgeletJob(remeasured, len(src.a), hypotheses, added, 0.0, *(len(x) for x in left))
 
 
 def _triangulate_with(
     m: Map, camera: CameraModel, cfg: Config, kfs: tuple, src: LineMeasurements
-) -> tuple[int, np.ndarray, np.ndarray]:
+) -> tuple[int, np.ndarray, tuple[np.ndarray, ...]]:
     """Steps 3-5 for source candidates ``src`` of keyframe k with target t and check keyframe c (``kfs``):
-    returns the hypotheses measured in t, the candidates that became edgelets, and how many candidates were left
-    after each step (``EdgeletJob``'s matched, kept, measured, triangulated, verified)."""
+    returns the hypotheses measured in t, the candidates that became edgelets, and the candidates left after each
+    step (``EdgeletJob``'s matched, kept, measured, triangulated, verified)."""
     k, t, c = kfs
     e = cfg.edgelets
     sm_t = smoothed(_image(m, t), e)  # Canny's input and the polarity gradient's, for this target
@@ -220,7 +221,7 @@ def _triangulate_with(
     one = _single_hypotheses(hits.cand, tgt.a, tri.ok & ver.ok, e.hypothesis_merge_px)
     made = _add(m, camera, cfg, kfs, tri.edgelets.subset(one), (_take(src, hits.cand[one]), tgt, ver), one)
     stages = (matched, kept, hits.cand, hits.cand[tri.ok], hits.cand[tri.ok & ver.ok])
-    return len(hits.cand), hits.cand[one][made], np.array([len(np.unique(x)) for x in stages], np.int64)
+    return len(hits.cand), hits.cand[one][made], tuple(np.unique(x) for x in stages)
 
 
 def _depth_range(m: Map, cfg: Config, k: int) -> tuple[float, float]:
