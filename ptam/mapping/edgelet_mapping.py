@@ -197,7 +197,18 @@ def _integrate(m: Map, camera: CameraModel, cfg: Config, k: int, t: int) -> Edge
         h2, made2, left2 = _triangulate_with(m, camera, cfg, (k, t2, c2), _take(src, sel))
         hypotheses, added = hypotheses + h2, added + len(made2)
         left = tuple(np.union1d(a, sel[b]) for a, b in zip(left, left2))
-    return EdgeletJob(remeasured, len(src.a), hypotheses, added, 0.0, *(len(x) for x in left))
+    matched, kept, measured, triangulated, verified = (len(x) for x in left)
+    return EdgeletJob(
+        remeasured,
+        len(src.a),
+        hypotheses,
+        added,
+        matched=matched,
+        kept=kept,
+        measured=measured,
+        triangulated=triangulated,
+        verified=verified,
+    )
 
 
 def _triangulate_with(
