@@ -5,15 +5,14 @@ import numpy as np
 import pytest
 
 from ptam.config import default_config
-from ptam.edgelet import perp, sample_along
-from ptam.edgelet.edgelet_ba_kernels import frames_updated
+from ptam.edgelet import EdgeletObservations, Edgelets, perp, project_edgelets, sample_along
+from ptam.edgelet.edgelet_ba_kernels import edgelet_ba_terms, frames_updated
 from ptam.geometry import so3
 from ptam.map.snapshot import camera_centres
 from ptam.mapping import bundle_edgelet_kernels as EK
 from ptam.mapping import bundle_kernels as K
 from ptam.mapping import bundle_schur_kernels as SK
 from ptam.mapping.bundle import Bundle
-from ptam.mapping.bundle_edgelets import EdgeletLM
 from ptam.mapping.bundle_inputs import EdgeletBundleInput
 from ptam.mapping.bundle_structure import build_structure
 from tests.reference import bundle as R
@@ -274,37 +273,41 @@ def test_frames_update_kernel_matches_reference(problem):
     assert close(RtR, np.broadcast_to(np.eye(3), (len(de), 3, 3)), 1e-12)
 
 
-def test_convergence_counts_an_edgelet_turn_as_its_sample_points_motion(problem):
-    """The convergence test's squared update (PTAM: of every parameter, metres for points) counts an edgelet's
-    turn as the distance it moves the edgelet's sample points (eq. 6), not in radians: a 1e-3 rad turn moves
-    sample points 1 cm out by 10 µm, which no measurement can see."""
-    prob, eb = problem
-    fixed = np.zeros(len(prob.poses_true), bool)
-    fixed[:2] = True
-    inp = EdgeletBundleInput(eb.truth, eb.obs, CFG.edgelets).checked(len(prob.poses_true))
-    st = build_structure(
-        prob.meas_kf,
-        prob.meas_pt,
-        fixed,
-        np.ones(len(prob.points_true), bool),
-        (inp.obs.kf, inp.obs.edgelet, inp.adjust_mask),
-    )
-    P = prob.poses_true[st.cams]
-    lm = EdgeletLM(prob.camera, st, inp, P)
-    lm.residuals(P)
+def test_seen_update_kernel_matches_reference(problem):
+    """The convergence test's edgelet share (``ba_edgelet_seen_update``) against its numpy reference, for a random
+    update at the perturbed start's linearisation."""
+    st, (_, _, _, _, use, _, bad, _), (_, jp, je, _, _), _ = _linearised(problem)
     n = len(st.edgelets.ids)
-    turn = np.zeros((n, 4))
-    turn[:, 2] = 1e-3
-    # Where the turn moves the sample points: the world positions of ±z on the edgelet's axis, before and after.
-    F0 = inp.edgelets.subset(st.edgelets.ids).frames()
-    F1 = np.empty_like(F0)
-    frames_updated(F0, turn, F1)
-    z = np.abs(lm.along[:, 1])
-    e = st.edgelets.medg
-    moved = np.linalg.norm((F1[e, :3, 2] - F0[e, :3, 2]) * z[:, None], axis=1)
-    mean_moved = np.bincount(e, weights=moved, minlength=n) / np.bincount(e, minlength=n)
-    assert np.allclose(lm.squared_update(turn), np.sum(mean_moved**2), rtol=1e-6)
-    assert lm.squared_update(turn) < 0.1 * n * 1e-6  # in radians, n·1e-6: here the sample points sit 2-12 cm out
-    shift = np.zeros((n, 4))
-    shift[:, 0] = 1e-3
-    assert np.isclose(lm.squared_update(shift), n * 1e-6)  # translations count in metres, as a point's
+    de = np.random.default_rng(3).normal(size=(n, 4)) * np.array([1e-3, 1e-3, 1e-2, 1e-2])
+    seen = np.empty(n)
+    total = EK.ba_edgelet_seen_update(jp, je, de, st.edgelets.medg, use, bad, seen)
+    ref = RE.ba_edgelet_seen_update_ref(jp, je, de, st.edgelets.medg, use, bad, n)
+    assert close(seen, ref, 1e-12) and np.isclose(total, ref.sum(), rtol=1e-12) and np.count_nonzero(ref) > 0.9 * n
+
+
+def test_convergence_counts_the_edgelet_motion_its_measurements_see(problem):
+    """An edgelet on a line parallel to the keyframes' baseline (§4.3's aperture problem: every back-projected plane
+    is the one through the line and the baseline) can slide and turn within that plane unseen: such an update
+    counts nothing towards the convergence test. Moved 1 mm out of the plane it counts (1 mm)², as a point's
+    update in metres; turned 1e-3 rad out of it, the motion of the sample points ~1 cm out (eq. 6)."""
+    cam = problem[0].camera
+    centres = np.array([[-0.1, 0.0, 0.0], [0.0, 0.0, 0.0], [0.1, 0.0, 0.0]])
+    poses = np.repeat(np.eye(4)[None], 3, axis=0)
+    poses[:, :3, 3] = -centres
+    plane_normal = np.array([0.0, 1.0, -0.02]) / np.hypot(1.0, 0.02)
+    ed = Edgelets(np.array([[0.05, 0.02, 1.0]]), np.array([[1.0, 0.0, 0.0]]), plane_normal[None])
+    mkf, medg = np.arange(3), np.zeros(3, np.int64)
+    a = np.stack([project_edgelets(cam, T, ed).centre[0] for T in poses])
+    m_hat = np.stack([project_edgelets(cam, T, ed).normal[0] for T in poses])
+    along = sample_along(cam, poses, ed, EdgeletObservations(mkf, medg, a, perp(m_hat)), CFG.edgelets)
+    _, jp, je, valid = edgelet_ba_terms(cam.kernel_params(), poses, ed.frames(), mkf, medg, a, m_hat, along)
+    use, bad, seen = np.ones(3, bool), ~valid, np.empty(1)
+
+    def counted(de) -> float:
+        return EK.ba_edgelet_seen_update(jp, je, np.asarray([de], float), medg, use, bad, seen)
+
+    assert counted([0.0, 1e-3, 0.0, 0.0]) < 1e-9 * 1e-6  # slid within the plane (y = z × x lies in it)
+    assert counted([0.0, 0.0, 1e-2, 0.0]) < 1e-9 * 1e-6  # turned about the plane's normal, within it
+    assert np.isclose(counted([1e-3, 0.0, 0.0, 0.0]), 1e-6, rtol=0.01)
+    z = np.abs(along[:, 1]).max()
+    assert 0.5 * (1e-3 * z) ** 2 < counted([0.0, 0.0, 0.0, 1e-3]) <= 1.01 * (1e-3 * z) ** 2 and 0.005 < z < 0.02

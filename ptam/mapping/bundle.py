@@ -10,8 +10,8 @@ factorised. Details from PTAM's code:
 * Marquardt damping: the diagonals of U and V are multiplied by (1 + λ); λ starts at 1e-4, × 0.3 after an
   accepted step, × ν after a rejected one (ν = 2, doubling per rejection, reset on success).
 * Every LM trial counts towards ``max_iterations``; converged when the squared norm of the whole update is
-  below ``converge_squared_update`` (an edgelet's turn counted as the motion it gives its sample points,
-  ``EdgeletLM.squared_update``).
+  below ``converge_squared_update`` (an edgelet's update counted as the largest motion of its sample points that
+  one of its measurements sees, ``EdgeletLM.squared_update``).
 * Measurements with zero Tukey weight (or behind the camera) leave the problem for the rest of the run and
   are reported as outliers (PTAM §6.4 gives them a second chance).
 * The abort flag is polled before every trial, so a request stops the solver within one iteration; the

@@ -21,6 +21,8 @@ the Tukey biweight and accumulated:
   the points' ``bundle_schur_kernels.eliminate`` (W has rank 2 for both: two distances per measurement).
 * the edgelet updates δμ_E = V*⁻¹ (ε_b − Σ Wᵀ δμ_K) are ``bundle_schur_kernels.ba_backsub``'s, as for points;
   ``ptam.edgelet.edgelet_ba_kernels.frames_updated`` applies them to the frames (``Edgelets.updated``).
+* ``ba_edgelet_seen_update``: the edgelet updates' share of the convergence test, the motion of their sample points
+  that the measurements can see (``bundle_edgelets.EdgeletLM.squared_update``).
 
 Per Agility §8 every distance has unit (one-pixel) variance. The numpy references are in
 ``tests/reference/bundle_edgelets.py``.
@@ -166,6 +168,25 @@ def _accumulate(jp, je, err, sw, e, r, U, ea, V, eb, A, B):
             for b in range(a + 1):
                 U[r, a, b] += A[s, a] * A[s, b]
             ea[r, a] += A[s, a] * res
+
+
+@njit(nogil=True, cache=True)
+def ba_edgelet_seen_update(jp, je, de, medg, use, bad, seen):
+    """Σ over edgelets of the largest squared motion, in metres, that one of their measurements in ``use`` (and not
+    ``bad``) sees of one of their sample points under the update ``de`` (E, 4): the change of its perpendicular
+    distance, je·δμ_E px (eq. 9), over the pixels one metre of camera-frame motion moves it at most, |jp[:3]| (the
+    translation part of eq. 8). ``seen`` (E,) is scratch (out: each edgelet's share)."""
+    seen[:] = 0.0
+    for k in range(medg.shape[0]):
+        if not use[k] or bad[k]:
+            continue
+        e = medg[k]
+        for s in range(2):
+            d = je[k, s, 0] * de[e, 0] + je[k, s, 1] * de[e, 1] + je[k, s, 2] * de[e, 2] + je[k, s, 3] * de[e, 3]
+            g2 = jp[k, s, 0] * jp[k, s, 0] + jp[k, s, 1] * jp[k, s, 1] + jp[k, s, 2] * jp[k, s, 2]
+            if g2 > 0.0 and d * d > seen[e] * g2:
+                seen[e] = d * d / g2
+    return seen.sum()
 
 
 @njit(nogil=True, cache=True)

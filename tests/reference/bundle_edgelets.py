@@ -48,3 +48,12 @@ def ba_edgelet_backsub_ref(Vinv, eb, W, live, mrow, medg, dcam):
     k = np.flatnonzero(live & (mrow >= 0))
     np.add.at(v, medg[k], -np.einsum("kab,ka->kb", W[k], dcam.reshape(-1, 6)[mrow[k]]))
     return np.einsum("eab,eb->ea", Vinv, v)
+
+
+def ba_edgelet_seen_update_ref(jp, je, de, medg, use, bad, n_edgelets):
+    """Each edgelet's largest squared sample-point motion seen by a measurement: (je·δμ_E / |jp[:3]|)² in m²."""
+    ok = use & ~bad
+    m2 = (np.einsum("ksa,ka->ks", je, de[medg]) ** 2 / np.sum(jp[:, :, :3] ** 2, axis=2))[ok].max(axis=1)
+    seen = np.zeros(n_edgelets)
+    np.maximum.at(seen, medg[ok], m2)
+    return seen
