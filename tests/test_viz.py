@@ -1,7 +1,7 @@
 """The rerun viewer: a run of two_wall_short recorded into rerun's in-memory sink, read back and counted.
 
 No display needed. The recording is parsed with rerun's own RRD reader, so the test checks what a viewer would
-receive: one frustum per keyframe, the map's point count, one trajectory vertex per tracked frame.
+receive: one frustum per keyframe, the map's point count and edgelets, one trajectory vertex per tracked frame.
 """
 
 import uuid
@@ -32,12 +32,14 @@ def recorded(tmp_path_factory):
     stream = rr.RecordingStream("ptam-test", recording_id=uuid.uuid4())
     memory = stream.memory_recording()
     viewer = Viewer(stream, camera, cfg)
-    found = []
+    found, edges = [], []  # per frame: points found; edgelets (found, searched)
     with open_dataset(d, capture().default_fps) as src, System(camera, cfg, mode="sync") as system:
         system.observers.append(viewer)
         for frame in src:
             out = system.process(frame)
             found.append(int(out.result.measurements.found.sum()) if out.result is not None else 0)
+            r = out.result
+            edges.append((r.n_edgelets_found, r.n_edgelets_attempted) if r is not None else (0, 0))
             if frame.index + 1 == FRAMES:
                 break
     viewer.close(system)
@@ -54,7 +56,7 @@ def recorded(tmp_path_factory):
                     zip(row_ids, frames, batch.column(name).to_pylist())
                 )
     rows = {k: [(f, v) for _, f, v in sorted(r)] for k, r in rows.items()}
-    return system, viewer, rows, np.array(found)
+    return system, viewer, rows, np.array(found), np.array(edges)
 
 
 def last(rows, entity, component):
@@ -62,7 +64,7 @@ def last(rows, entity, component):
 
 
 def test_recording_matches_the_map_keyframes_and_trajectory(recorded):
-    system, viewer, rows, _ = recorded
+    system, viewer, rows, *_ = recorded
     snap = system.mapper.snapshot
     print(
         f"viewer: {snap.n_points} points, {snap.n_keyframes} keyframes, {len(system.trajectory)} poses; "
@@ -81,7 +83,7 @@ def test_recording_matches_the_map_keyframes_and_trajectory(recorded):
 
 
 def test_frames_measurements_state_and_plots(recorded):
-    system, viewer, rows, found = recorded
+    system, viewer, rows, found, _ = recorded
     logged = FRAMES - viewer.dropped
     assert len(rows[("/world/camera/image", "EncodedImage:blob")]) == logged
     by_frame = dict(rows[("/world/camera/image/found", "Points2D:positions")])
@@ -97,6 +99,28 @@ def test_frames_measurements_state_and_plots(recorded):
     assert last(rows, "/plots/keyframes/keyframes", "Scalars:scalars") == [system.mapper.snapshot.n_keyframes]
     (grid,) = {len(v[-1][1]) for (e, c), v in rows.items() if e == "/world/grid" and c == "LineStrips3D:strips"}
     assert grid == 2 * (2 * load_config().viewer.grid_half_cells + 1)
+
+
+def test_map_edgelets_and_the_frames_edgelet_searches(recorded):
+    """Agility §4: every good edgelet drawn in 3-D about its centre, as long as it was made (``edgelets.length_px``
+    in its source keyframe); in each logged frame, the edgelets the tracker found and those it did not."""
+    system, viewer, rows, _, edges = recorded
+    snap, camera, cfg = system.mapper.snapshot, system.camera, load_config()
+    good = snap.good_edgelet_indices
+    seg = np.asarray(last(rows, "/world/edgelets", "LineStrips3D:strips"))
+    assert seg.shape == (len(good), 2, 3) and len(good) > 20
+    np.testing.assert_allclose(seg.mean(axis=1), snap.edgelet_centre[good], rtol=1e-6)  # float32 in the recording
+    T = snap.kf_T_cw[snap.edgelet_source_kf[good]]
+    ends = [camera.project(np.einsum("nij,nj->ni", T[:, :3, :3], seg[:, s]) + T[:, :3, 3]) for s in (0, 1)]
+    np.testing.assert_allclose(np.linalg.norm(ends[1] - ends[0], axis=1), cfg.edgelets.length_px, rtol=0.01)
+    found = dict(rows[("/world/camera/image/edgelets_found", "LineStrips2D:strips")])
+    failed = dict(rows[("/world/camera/image/edgelets_failed", "LineStrips2D:strips")])
+    shown = [f for f in found if edges[f, 1] > 0]
+    assert len(shown) > 20 and edges[:, 0].max() > 20
+    for f in shown:  # every logged frame shows exactly the tracker's edgelet searches, each 18 px long
+        assert len(found[f]) == edges[f, 0] and len(failed[f]) == edges[f, 1] - edges[f, 0]
+        lengths = np.linalg.norm(np.diff(np.asarray(found[f] or np.zeros((0, 2, 2))), axis=1), axis=-1)
+        np.testing.assert_allclose(lengths, cfg.edgelets.length_px, rtol=1e-5)  # rerun stores float32
 
 
 def test_grid_and_thumbnail_intrinsics():

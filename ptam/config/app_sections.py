@@ -76,6 +76,8 @@ class ViewerConfig:
     point_radius_ui: Annotated[float, Range("(0, inf)")]
     measurement_radius_px: Annotated[float, Range("(0, inf)")]
     failed_radius_px: Annotated[float, Range("(0, inf)")]
+    edgelet_radius_ui: Annotated[float, Range("(0, inf)")]
+    edgelet_radius_px: Annotated[float, Range("(0, inf)")]
     grid_spacing: Annotated[float, Range("(0, inf)")]
     grid_half_cells: Annotated[int, Range("[1, inf)")]
     status_interval_s: Annotated[float, Range("[0, inf)")]

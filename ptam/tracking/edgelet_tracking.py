@@ -46,8 +46,9 @@ from .pose_kernels import pose_irls_edgelets
 @dataclass(frozen=True)
 class EdgeletFrame:
     """One frame's edgelet searches: snapshot edgelet ``ids``, world ``centre`` (n, 3), the point ``xy``
-    (n, 2) on the found edge, the predicted unit ``normal`` (n, 2) searched along, expected ``blur`` (px) and
-    ``found``; ``weights`` (n,) their final Tukey weights (0 where not used)."""
+    (n, 2) on the found edge (the predicted centre where the search failed), the predicted unit ``normal`` (n, 2)
+    searched along, expected ``blur`` (px) and ``found``; ``weights`` (n,) their final Tukey weights (0 where not
+    used)."""
 
     ids: np.ndarray
     centre: np.ndarray
@@ -101,7 +102,7 @@ class EdgeletTracker:
         sel = np.flatnonzero(visible & p.valid & inside & wide)
         c, n = p.centre[sel], p.normal[sel]
         res = search_edgelets(image, c, n, blur[sel], radius[sel], t_min[sel], self.ecfg)
-        xy = c + res.offset[:, None] * n
+        xy = c + np.where(res.found, res.offset, 0.0)[:, None] * n
         return EdgeletFrame(ids[sel], ed.centre[sel], xy, n, blur[sel], res.found, np.zeros(len(sel)))
 
     def _table(self, snapshot: MapSnapshot, T_cw: np.ndarray) -> tuple[np.ndarray, VisibilityTable]:

@@ -11,6 +11,7 @@ import numpy as np
 from ..geometry import se3
 from ..image.pyramid import Pyramid
 from ..vocabulary import PoseModel, Quality
+from .edgelet_tracking import EdgeletFrame
 
 
 @dataclass(frozen=True)
@@ -84,6 +85,7 @@ class TrackResult:
     pose_model: PoseModel = PoseModel.GENERAL  # the motion model chosen (Gauglitz et al. §4.2)
     n_edgelets_attempted: int = 0  # edgelets searched this frame (Agility §5.1)
     n_edgelets_found: int = 0  # ... and found by the sawtooth search
+    edgelets: EdgeletFrame | None = None  # the fine stage's edgelet searches (for the viewer)
 
     @property
     def T_wc(self) -> np.ndarray:

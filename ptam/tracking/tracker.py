@@ -339,6 +339,7 @@ class Tracker:
             pose_model=self._model,
             n_edgelets_attempted=self._edges.n_attempted,
             n_edgelets_found=self._edges.n_found,
+            edgelets=self._edges,
         )
 
     def _prior_is_rapid(self) -> bool:

@@ -1,9 +1,11 @@
-"""Geometry drawn by the viewer, as plain arrays: the dominant-plane grid and thumbnail intrinsics."""
+"""Geometry drawn by the viewer, as plain arrays: the dominant-plane grid, thumbnail intrinsics and edgelet
+segments."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from ..edgelet import perp
 from ..image.pyramid import zero_to_level
 
 # rerun puts pixel corners at integer coordinates (a W-pixel-wide image spans [0, W]); ptam puts pixel centres there.
@@ -30,3 +32,23 @@ def level_intrinsics(camera, level: int) -> tuple[tuple[float, float], tuple[flo
     s = 2.0**level
     c = zero_to_level(np.array([[camera.cx, camera.cy]]), level)[0] + RERUN_PIXEL_OFFSET
     return (camera.fx / s, camera.fy / s), (float(c[0]), float(c[1])), (camera.width >> level, camera.height >> level)
+
+
+def edgelet_segments(snap, camera, ids: np.ndarray, length_px: float) -> np.ndarray:
+    """(N, 2, 3) end points of edgelets ``ids`` of a map snapshot: each as long as it was made, ``length_px`` in its
+    source keyframe (Agility §4.2: an edge of 18 pixels), i.e. ±length_px/2 over its image length per metre there
+    (eq. 5), about its centre along its direction."""
+    T = snap.kf_T_cw[snap.edgelet_source_kf[ids]]
+    centre, direction = snap.edgelet_centre[ids], snap.edgelet_direction[ids]
+    Xc = np.einsum("nij,nj->ni", T[:, :3, :3], centre) + T[:, :3, 3]
+    d = np.einsum("nij,nj->ni", camera.project_jacobian(Xc), np.einsum("nij,nj->ni", T[:, :3, :3], direction))
+    half = 0.5 * length_px / np.maximum(np.linalg.norm(d, axis=1), 1e-12)
+    return np.stack([centre - half[:, None] * direction, centre + half[:, None] * direction], axis=1)
+
+
+def image_segments(xy: np.ndarray, normal: np.ndarray, length_px: float) -> np.ndarray:
+    """(N, 2, 2) image segments ``length_px`` long through points ``xy`` across their unit edge normals, in rerun's
+    pixel convention: an edgelet where the tracker found (or predicted) it."""
+    along = 0.5 * length_px * perp(np.asarray(normal, np.float64).reshape(-1, 2))
+    c = np.asarray(xy, np.float64).reshape(-1, 2) + RERUN_PIXEL_OFFSET
+    return np.stack([c - along, c + along], axis=1)

@@ -17,6 +17,7 @@ KEYFRAME_COLOUR = (80, 160, 255)
 PANORAMA_COLOUR = (230, 80, 230)  # Gauglitz et al. §3.2: panorama keyframes and their rays (no depth)
 # Gauglitz et al. §5.3: keyframes that came with merged tracks, by part (1, 2, ...; cycled), beside KEYFRAME_COLOUR.
 PART_COLOURS = np.array([[80, 220, 120], [255, 200, 60], [0, 200, 220], [200, 120, 60], [160, 120, 255]], np.uint8)
+EDGELET_COLOUR = (0, 230, 255)  # Agility §4: edgelets in the map and found in the frame (failed ones FAILED_COLOUR)
 GRID_COLOUR = (128, 128, 128)  # PTAM code MapViewer::DrawGrid: grey lines ...
 GRID_AXIS_COLOUR = (255, 255, 255)  # ... the two through the origin white
 

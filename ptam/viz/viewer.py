@@ -9,12 +9,15 @@ only when the mapper has published a new snapshot; keyframe thumbnails once per 
 What is logged (entity paths):
 
 * ``world/camera`` current pose; ``world/camera/image`` the frame, with ``found`` measurements coloured by pyramid
-  level (PTAM's colours), ``failed`` ones as small grey dots, and the stereo-initialisation ``trails`` (PTAM §6.1);
+  level (PTAM's colours), ``failed`` ones as small grey dots, the edgelets the tracker found (``edgelets_found``, at
+  the found edge) and did not find (``edgelets_failed``, grey, where predicted) as short segments (Agility §5), and
+  the stereo-initialisation ``trails`` (PTAM §6.1);
 * ``camera/augmented`` the AR worker's augmented frame (PTAM §7.5: what the user looks at), as rendered through the
   lens model, at the same ``frame`` / ``time`` as its camera image: ``Viewer.augmented`` is the AR layer's view
   (:mod:`ptam.viz.augmented`); it runs in the AR worker's thread, asks for at most ``viewer.ar_max_fps`` frames a
   second, encodes them there and only enqueues (skipped, counted in ``ar_dropped``, when full);
-* ``world/points`` the good map points coloured by source level; ``world/panorama_rays`` the panorama features
+* ``world/points`` the good map points coloured by source level; ``world/edgelets`` the good edgelets as 3-D
+  segments (Agility §4.1); ``world/panorama_rays`` the panorama features
   (rays without depth, Gauglitz et al. §3.2) at their keyframe's mean depth; ``world/keyframes/NNNN`` one frustum
   per keyframe with its thumbnail, panorama keyframes in the panorama colour; ``world/trajectory/NNNNN`` the
   tracked camera path, logged incrementally in
@@ -40,6 +43,7 @@ from ..geometry import se3
 from ..map.snapshot import MapSnapshot
 from ..system.priority import lower_priority
 from ..system.run_stats import Latency, RunStats
+from ..tracking.edgelet_tracking import EdgeletFrame
 from ..vocabulary import PoseModel, TrackingState
 from . import map_entities, palette
 from .augmented import ArFrame, AugmentedView
@@ -86,6 +90,7 @@ class Viewer:
         self.rec = recording
         self.camera = camera
         self.cfg = cfg.viewer
+        self._edgelet_px = cfg.edgelets.length_px
         self._nice = cfg.system.background_nice
         self.show_augmented = augmented
         self.queue: queue.Queue = queue.Queue(maxsize=self.cfg.queue_size)
@@ -244,6 +249,7 @@ class Viewer:
             "world/camera/image/failed",
             rr.Points2D(failed_xy + off, colors=palette.FAILED_COLOUR, radii=c.failed_radius_px),
         )
+        self._log_frame_edgelets(o)
         start, current = (np.zeros((0, 2)), np.zeros((0, 2))) if item.trails is None else item.trails
         self._emit(
             "world/camera/image/trails",
@@ -253,6 +259,19 @@ class Viewer:
                 colors=palette.TRAIL_COLOUR,
             ),
         )
+
+    def _log_frame_edgelets(self, o) -> None:
+        """The fine stage's edgelet searches (Agility §5.1), as segments across their search normals."""
+        e = o.result.edgelets if o.result is not None and o.result.edgelets is not None else EdgeletFrame.empty()
+        for name, sel, colour in (
+            ("found", e.found, palette.EDGELET_COLOUR),
+            ("failed", ~e.found, palette.FAILED_COLOUR),
+        ):
+            lines = map_entities.image_segments(e.xy[sel], e.normal[sel], self._edgelet_px)
+            self._emit(
+                f"world/camera/image/edgelets_{name}",
+                rr.LineStrips2D(lines, colors=colour, radii=self.cfg.edgelet_radius_px),
+            )
 
     def _log_map(self, snap: MapSnapshot | None) -> None:
         c = self.cfg
@@ -265,23 +284,9 @@ class Viewer:
             self._kf_logged, self._kf_poses, self._grid = (), np.zeros((0, 4, 4)), False
         if snap is None:
             self._emit("world/points", rr.Points3D(np.zeros((0, 3))))
+            self._emit("world/edgelets", rr.LineStrips3D(np.zeros((0, 2, 3))))
             return
-        good = snap.good_point_indices
-        rays = good[snap.ray[good]]
-        good = good[~snap.ray[good]]
-        self._emit(
-            "world/points",
-            rr.Points3D(
-                snap.X[good],
-                colors=palette.level_colours(snap.source_level[good]),
-                radii=rr.Radius.ui_points(c.point_radius_ui),
-            ),
-        )
-        # Panorama rays have no depth: drawn where they meet the keyframe's mean depth, in the panorama's colour.
-        self._emit(
-            "world/panorama_rays",
-            rr.Points3D(snap.X[rays], colors=palette.PANORAMA_COLOUR, radii=rr.Radius.ui_points(c.point_radius_ui)),
-        )
+        self._log_features(snap)
         n_old = len(self._kf_logged)
         T_wc = np.linalg.inv(snap.kf_T_cw)
         moved = np.ones(len(keyframes), bool)
@@ -309,6 +314,31 @@ class Viewer:
             colours = np.where(axis[:, None], palette.GRID_AXIS_COLOUR, palette.GRID_COLOUR).astype(np.uint8)
             self._emit("world/grid", rr.LineStrips3D(lines, colors=colours))
             self._grid = True
+
+    def _log_features(self, snap: MapSnapshot) -> None:
+        """The map's good points, edgelets and panorama rays."""
+        c = self.cfg
+        good = snap.good_point_indices
+        rays = good[snap.ray[good]]
+        good = good[~snap.ray[good]]
+        self._emit(
+            "world/points",
+            rr.Points3D(
+                snap.X[good],
+                colors=palette.level_colours(snap.source_level[good]),
+                radii=rr.Radius.ui_points(c.point_radius_ui),
+            ),
+        )
+        edgelets = map_entities.edgelet_segments(snap, self.camera, snap.good_edgelet_indices, self._edgelet_px)
+        self._emit(
+            "world/edgelets",
+            rr.LineStrips3D(edgelets, colors=palette.EDGELET_COLOUR, radii=rr.Radius.ui_points(c.edgelet_radius_ui)),
+        )
+        # Panorama rays have no depth: drawn where they meet the keyframe's mean depth, in the panorama's colour.
+        self._emit(
+            "world/panorama_rays",
+            rr.Points3D(snap.X[rays], colors=palette.PANORAMA_COLOUR, radii=rr.Radius.ui_points(c.point_radius_ui)),
+        )
 
     def _log_trajectory(self, trajectory: list, n: int, final: bool) -> None:
         """The tracked path, incrementally: vertices go into strips of ``_STRIP_VERTICES``, each its own entity
