@@ -3,13 +3,17 @@
 measured drops rapidly below the number of available edgelet measurements"; at ~54 px of motion, 18 points
 against 151 edgelets).
 
-The scene (default desk_blur: fast sweeps rendered with motion blur) runs in sync mode with the given config.
+Each scene runs in sync mode with the given config: desk_blur (fast sweeps rendered with motion blur over a desk of
+gravel and photographs, whose straight edges are few) and bricks_blur (the same kind of sweeps over a brick wall,
+edge-rich as the paper's office is).
 A frame's image motion is the median displacement, between the previous frame's pose and its own, of the map
 points it found, projected with the final map; frames are binned by it and the points and edgelets found are
 averaged per bin. Then the fastest frames one by one.
 """
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 
@@ -19,7 +23,7 @@ from ..geometry import se3
 from ..synthetic import ensure_sequence
 from ..system import System
 
-FIG5_SCENE = "desk_blur"
+FIG5_SCENES = ("desk_blur", "bricks_blur")
 MOTION_BINS_PX = (0, 5, 10, 20, 30, 40, 50, 60, 80)
 FASTEST_FRAMES = 6
 
@@ -31,10 +35,17 @@ def _motion_px(camera, T_prev: np.ndarray, T: np.ndarray, X: np.ndarray) -> floa
     return float(np.median(np.linalg.norm(b - a, axis=1)))
 
 
-def features_by_motion(cfg, scene: str = FIG5_SCENE, out=None) -> list[tuple[int, float, int, int]]:
+def features_by_motion(cfg, scene: str = FIG5_SCENES[0], out=None) -> list[tuple[int, float, int, int]]:
     """(frame, image motion px, points found, edgelets found) for each frame with a pose in the map's frame
     after another; printed with ``out``."""
-    seq = ensure_sequence(scene, cfg.synthetic)
+    rows, _ = run_features_by_motion(ensure_sequence(scene, cfg.synthetic), cfg)
+    if out is not None:
+        print_features_by_motion(rows, scene, out)
+    return rows
+
+
+def run_features_by_motion(seq: Path, cfg) -> tuple[list[tuple[int, float, int, int]], System]:
+    """``features_by_motion``'s rows for a sequence directory, and the system that tracked it (its trajectory)."""
     camera = load_camera(seq / "camera.yaml")
     found: list[tuple[int, np.ndarray, np.ndarray, int]] = []
     with open_dataset(seq, cfg.capture.default_fps) as source, System(camera, cfg, mode="sync") as system:
@@ -48,9 +59,7 @@ def features_by_motion(cfg, scene: str = FIG5_SCENE, out=None) -> list[tuple[int
     for (i0, T0, _, _), (i, T, ids, n_edge) in zip(found, found[1:]):
         if i == i0 + 1 and len(ids):
             rows.append((i, _motion_px(camera, T0, T, X[ids]), len(ids), n_edge))
-    if out is not None:
-        print_features_by_motion(rows, scene, out)
-    return rows
+    return rows, system
 
 
 def print_features_by_motion(rows: list[tuple[int, float, int, int]], scene: str, out=print) -> None:
