@@ -10,14 +10,16 @@ from ptam.config import default_config
 from ptam.mapping.bundle import Bundle
 from tests.support.ba_problems import synthetic_workspace_problem
 
-ROUNDS = 4
+ROUNDS = 5
 
 
 def test_bundle_releases_the_gil():
     """Throughput of a numba nogil kernel looping in a second thread, while this thread runs BA, compared with
     while this thread runs the same kind of GIL-free kernel for as long. The machine has 2 cores shared with
     other jobs, so two busy threads slow each other whatever the GIL does; the conditions are interleaved in
-    short windows so that changing background load hits them alike."""
+    short windows so that changing background load hits them alike, and the ratio is the median over rounds, so
+    that a burst of load in one window (another test on the other core: 0.67 in one CI round, 0.92-0.96 on a quiet
+    machine) does not decide it. A BA that held the GIL would lower every round's ratio."""
     prob = synthetic_workspace_problem(20, 1000, seed=3, outlier_fraction=0.10)
     bundle = Bundle(prob.camera, default_config().bundle)
     fixed = np.zeros(20, bool)
@@ -49,11 +51,12 @@ def test_bundle_releases_the_gil():
 
     th = threading.Thread(target=loop)
     th.start()
-    counted = {"ba": [0, 0.0], "nogil": [0, 0.0], "alone": [0, 0.0]}
+    rates = []  # per round: kernel calls/s beside BA, beside a nogil kernel, alone
     try:
         for _ in range(ROUNDS):
             seconds = None
-            for name in counted:
+            rate = {}
+            for name in ("ba", "nogil", "alone"):
                 c0, t0 = calls[0], time.perf_counter()
                 if name == "ba":
                     ba()
@@ -63,14 +66,15 @@ def test_bundle_releases_the_gil():
                     time.sleep(seconds)
                 dt = time.perf_counter() - t0
                 seconds = seconds or dt
-                counted[name][0] += calls[0] - c0
-                counted[name][1] += dt
+                rate[name] = (calls[0] - c0) / dt
+            rates.append((rate["ba"], rate["nogil"], rate["alone"]))
     finally:
         stop.set()
         th.join()
-    rate = {k: n / t for k, (n, t) in counted.items()}
+    r = np.array(rates)
+    ratio = r[:, 0] / r[:, 1]
     print(
-        f"kernel calls/s alone {rate['alone']:.0f}, beside a nogil kernel {rate['nogil']:.0f}, "
-        f"beside BA {rate['ba']:.0f} (ratio to alone {rate['ba'] / rate['alone']:.2f})"
+        f"kernel calls/s alone {np.median(r[:, 2]):.0f}, beside a nogil kernel {np.median(r[:, 1]):.0f}, "
+        f"beside BA {np.median(r[:, 0]):.0f}; BA / nogil per round {np.round(ratio, 2)}"
     )
-    assert rate["ba"] >= 0.7 * rate["nogil"]
+    assert np.median(ratio) >= 0.7
