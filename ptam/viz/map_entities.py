@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..edgelet import perp
+from ..edgelet import Edgelets, perp, project_edgelets
 from ..image.pyramid import zero_to_level
 
 # rerun puts pixel corners at integer coordinates (a W-pixel-wide image spans [0, W]); ptam puts pixel centres there.
@@ -37,12 +37,14 @@ def level_intrinsics(camera, level: int) -> tuple[tuple[float, float], tuple[flo
 def edgelet_segments(snap, camera, ids: np.ndarray, length_px: float) -> np.ndarray:
     """(N, 2, 3) end points of edgelets ``ids`` of a map snapshot: each as long as it was made, ``length_px`` in its
     source keyframe (Agility §4.2: an edge of 18 pixels), i.e. ±length_px/2 over its image length per metre there
-    (eq. 5), about its centre along its direction."""
-    T = snap.kf_T_cw[snap.edgelet_source_kf[ids]]
-    centre, direction = snap.edgelet_centre[ids], snap.edgelet_direction[ids]
-    Xc = np.einsum("nij,nj->ni", T[:, :3, :3], centre) + T[:, :3, 3]
-    d = np.einsum("nij,nj->ni", camera.project_jacobian(Xc), np.einsum("nij,nj->ni", T[:, :3, :3], direction))
-    half = 0.5 * length_px / np.maximum(np.linalg.norm(d, axis=1), 1e-12)
+    (eq. 5, ``project_edgelets``), about its centre along its direction."""
+    ed = Edgelets(snap.edgelet_centre[ids], snap.edgelet_direction[ids], snap.edgelet_normal[ids])
+    centre, direction, source = ed.centre, ed.direction, snap.edgelet_source_kf[ids]
+    per_metre = np.zeros(len(ids))
+    for k in np.unique(source).tolist():  # one projection per source keyframe
+        sel = source == k
+        per_metre[sel] = np.linalg.norm(project_edgelets(camera, snap.kf_T_cw[k], ed.subset(sel)).direction, axis=1)
+    half = 0.5 * length_px / np.maximum(per_metre, 1e-12)
     return np.stack([centre - half[:, None] * direction, centre + half[:, None] * direction], axis=1)
 
 
