@@ -4,8 +4,14 @@ import numpy as np
 import pytest
 
 from ptam.edgelet.edgelet import Edgelets, frames_from_first_view, perp
-from ptam.edgelet.edgelet_projection import blur_lengths, perpendicular_pose_jacobian, project_edgelets
+from ptam.edgelet.edgelet_projection import (
+    blur_lengths,
+    perpendicular_pose_jacobian,
+    project_edgelets,
+    project_edgelets_with_jacobian,
+)
 from ptam.geometry import se3
+from tests.reference.edgelet_projection import edgelet_projection_ref
 from tests.support.cameras import CAMERAS
 
 
@@ -104,6 +110,29 @@ def test_tracking_jacobian_matches_finite_differences(name):
         dn = cam.project(se3.transform(se3.exp(-mu) @ T, e.centre))
         fd[:, k] = np.sum(p.normal * (up - dn), axis=1) / (2 * h)
     assert np.abs(J - fd).max() < 1e-4 * np.abs(fd).max()
+
+
+@pytest.mark.parametrize("name", list(CAMERAS))
+def test_projection_kernel_matches_the_numpy_reference(name):
+    """Centres, directions, normals, validity and eq. 11's Jacobians against numpy, with edgelets behind the
+    camera and beyond the lens's range among them."""
+    cam = CAMERAS[name]
+    rng = np.random.default_rng(5)
+    e = random_edgelets(rng, 300, centre=(0.0, 0.0, 0.8), spread=1.6)
+    T = random_pose(rng)
+    p, J = project_edgelets_with_jacobian(cam, T, e)
+    c, d, n, valid, Xc, J_ref = edgelet_projection_ref(cam, T, e.centre, e.direction)
+    assert 50 < valid.sum() < len(valid) - 50  # some of each
+    assert np.array_equal(p.valid, valid)
+    assert np.allclose(p.camera_centre, Xc, rtol=0, atol=1e-14)
+    v = valid
+    scale = np.abs(c[v]).max()
+    assert np.abs(p.centre[v] - c[v]).max() < 1e-12 * scale
+    assert np.abs(p.direction[v] - d[v]).max() < 1e-12 * np.abs(d[v]).max()
+    assert np.abs(p.normal[v] - n[v]).max() < 1e-12
+    assert np.abs(J[v] - J_ref[v]).max() < 1e-12 * np.abs(J_ref[v]).max()
+    assert np.array_equal(project_edgelets(cam, T, e).centre, p.centre)
+    assert project_edgelets_with_jacobian(cam, T, e, jacobian=False)[1].shape == (0, 6)
 
 
 def test_blur_length_of_a_sideways_slide():

@@ -12,7 +12,13 @@ from .edgelet import EDGELET_DOF, Edgelets, frames_from_first_view, perp
 from .edgelet_ba import EdgeletObservations, EdgeletTerms, edgelet_terms, refine_edgelets, sample_along
 from .edgelet_candidates import EdgeletCandidates, extract_candidates, gradient_at, maximal_edgels, smoothed
 from .edgelet_measure import LineMeasurements, measure_in_keyframe
-from .edgelet_projection import ImageEdgelets, blur_lengths, perpendicular_pose_jacobian, project_edgelets
+from .edgelet_projection import (
+    ImageEdgelets,
+    blur_lengths,
+    perpendicular_pose_jacobian,
+    project_edgelets,
+    project_edgelets_with_jacobian,
+)
 from .edgelet_triangulation import Triangulation, Verification, line_planes, triangulate_edgelets, verify_edgelets
 from .sawtooth import SawtoothResult, VisibilityTable, build_visibility_table, search_edgelets, table_blurs
 
@@ -40,6 +46,7 @@ __all__ = [
     "perp",
     "perpendicular_pose_jacobian",
     "project_edgelets",
+    "project_edgelets_with_jacobian",
     "refine_edgelets",
     "sample_along",
     "smoothed",

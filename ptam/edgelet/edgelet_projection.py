@@ -18,10 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..camera import CameraModel
-from ..geometry import se3
-from .edgelet import Edgelets, perp
-
-_MIN_IMAGE_DIRECTION = 1e-12  # |d| below this (an edgelet seen end-on) cannot be projected
+from .edgelet import Edgelets
+from .edgelet_projection_kernels import edgelet_projection
 
 
 @dataclass(frozen=True)
@@ -43,23 +41,27 @@ class ImageEdgelets:
 
 def project_edgelets(camera: CameraModel, T_cw: np.ndarray, edgelets: Edgelets) -> ImageEdgelets:
     """Centres, image directions and dark-to-light normals of ``edgelets`` seen from pose ``T_cw`` (§4.2)."""
-    T_cw = np.asarray(T_cw, dtype=np.float64)
-    Xc = se3.transform(T_cw, edgelets.centre)
-    Dc = edgelets.direction @ T_cw[:3, :3].T
-    J = camera.project_jacobian(Xc)
-    c = camera.project(Xc)
-    d = np.einsum("nij,nj->ni", J, Dc)
-    norm = np.linalg.norm(d, axis=-1)
-    valid = camera.valid(Xc) & (norm > _MIN_IMAGE_DIRECTION) & np.all(np.isfinite(c), axis=-1)
-    n = perp(d) / np.where(norm > _MIN_IMAGE_DIRECTION, norm, 1.0)[:, None]
-    return ImageEdgelets(c, d, n, valid, Xc)
+    return project_edgelets_with_jacobian(camera, T_cw, edgelets, jacobian=False)[0]
+
+
+def project_edgelets_with_jacobian(
+    camera: CameraModel, T_cw: np.ndarray, edgelets: Edgelets, jacobian: bool = True
+) -> tuple[ImageEdgelets, np.ndarray]:
+    """``project_edgelets`` and each edgelet's (N, 6) ∂ε/∂μ_C of eq. 11 ((0, 6) without ``jacobian``), from one
+    projection (``edgelet_projection_kernels``)."""
+    c, d, n, valid, Xc, J = edgelet_projection(
+        camera.kernel_params(),
+        np.ascontiguousarray(T_cw, dtype=np.float64),
+        np.ascontiguousarray(edgelets.centre, dtype=np.float64).reshape(-1, 3),
+        np.ascontiguousarray(edgelets.direction, dtype=np.float64).reshape(-1, 3),
+        jacobian,
+    )
+    return ImageEdgelets(c, d, n, valid, Xc), J
 
 
 def perpendicular_pose_jacobian(camera: CameraModel, T_cw: np.ndarray, edgelets: Edgelets) -> np.ndarray:
     """(N, 6) ∂ε/∂μ_C of each edgelet's perpendicular displacement, eq. 11, with n̂ from the projection."""
-    proj = project_edgelets(camera, T_cw, edgelets)
-    J = camera.project_jacobian(proj.camera_centre)  # (N, 2, 3)
-    return np.einsum("ni,nij,njk->nk", proj.normal, J, se3.point_jacobian(proj.camera_centre))
+    return project_edgelets_with_jacobian(camera, T_cw, edgelets)[1]
 
 
 def blur_lengths(jacobian: np.ndarray, gamma: np.ndarray) -> np.ndarray:

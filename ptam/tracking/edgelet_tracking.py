@@ -34,8 +34,7 @@ from ..edgelet import (
     Edgelets,
     VisibilityTable,
     blur_lengths,
-    perpendicular_pose_jacobian,
-    project_edgelets,
+    project_edgelets_with_jacobian,
     search_edgelets,
     table_blurs,
 )
@@ -92,9 +91,9 @@ class EdgeletTracker:
             return EdgeletFrame.empty()
         ids, table = self._table(snapshot, T_cw)
         ed = Edgelets(snapshot.edgelet_centre[ids], snapshot.edgelet_direction[ids], snapshot.edgelet_normal[ids])
-        p = project_edgelets(self.camera, T_cw, ed)
+        p, jacobian = project_edgelets_with_jacobian(self.camera, T_cw, ed)
         gamma = motion.exposure_motion(self.cfg.tracker.exposure_fraction)
-        blur = blur_lengths(perpendicular_pose_jacobian(self.camera, T_cw, ed), gamma)
+        blur = blur_lengths(jacobian, gamma)
         visible, radius, t_min = table.lookup(blur)
         h, w = image.shape
         inside = (p.centre[:, 0] >= 0) & (p.centre[:, 1] >= 0) & (p.centre[:, 0] <= w - 1) & (p.centre[:, 1] <= h - 1)
