@@ -16,18 +16,20 @@ from __future__ import annotations
 import numpy as np
 
 from ..camera import CameraModel
-from ..geometry import se3
+from .patch_blur_kernels import patch_blur_lengths
 
 
 def patch_blur(camera: CameraModel, T_cw: np.ndarray, X: np.ndarray, w: np.ndarray, gamma: np.ndarray) -> np.ndarray:
     """Expected blur (level-0 px) of homogeneous features (X, w) (N, 3), (N,) seen from ``T_cw`` under the camera
     motion γ_C (6,) during the exposure: |∂CamProj/∂X_c · [w·I | −[X_c]×] · γ_C|; a ray (w = 0) does not move with
-    the camera's translation."""
-    Xc = X @ T_cw[:3, :3].T + w[:, None] * T_cw[:3, 3]
-    J = se3.point_jacobian(Xc)
-    J[:, :, :3] *= w[:, None, None]
-    motion = np.einsum("nij,njk,k->ni", camera.project_jacobian(Xc), J, np.asarray(gamma, dtype=np.float64))
-    return np.linalg.norm(motion, axis=1)
+    the camera's translation (``patch_blur_kernels``)."""
+    return patch_blur_lengths(
+        camera.kernel_params(),
+        np.ascontiguousarray(T_cw, dtype=np.float64),
+        np.ascontiguousarray(X, dtype=np.float64).reshape(-1, 3),
+        np.ascontiguousarray(w, dtype=np.float64).reshape(-1),
+        np.ascontiguousarray(gamma, dtype=np.float64).reshape(6),
+    )
 
 
 def searchable(blur: np.ndarray, level: np.ndarray, patch_size: int, max_widths: float) -> np.ndarray:
