@@ -36,6 +36,7 @@ MAPPER_KERNELS = [
     "ptam.edgelet.edgelet_refine_kernels.refine_frames",
     "ptam.edgelet.sawtooth_kernels.sawtooth_search",
     "ptam.edgelet.sawtooth_kernels.visibility_table",
+    "ptam.edgelet.edgelet_projection_kernels.edgelet_projection",
     "ptam.tracking.pose_kernels.pose_irls_edgelets",
 ]
 
