@@ -20,7 +20,6 @@ import numpy as np
 from ..camera import load_camera
 from ..capture import open_dataset
 from ..geometry import se3
-from ..synthetic import ensure_sequence
 from ..system import System
 
 FIG5_SCENES = ("desk_blur", "bricks_blur")
@@ -35,17 +34,9 @@ def _motion_px(camera, T_prev: np.ndarray, T: np.ndarray, X: np.ndarray) -> floa
     return float(np.median(np.linalg.norm(b - a, axis=1)))
 
 
-def features_by_motion(cfg, scene: str = FIG5_SCENES[0], out=None) -> list[tuple[int, float, int, int]]:
-    """(frame, image motion px, points found, edgelets found) for each frame with a pose in the map's frame
-    after another; printed with ``out``."""
-    rows, _ = run_features_by_motion(ensure_sequence(scene, cfg.synthetic), cfg)
-    if out is not None:
-        print_features_by_motion(rows, scene, out)
-    return rows
-
-
 def run_features_by_motion(seq: Path, cfg) -> tuple[list[tuple[int, float, int, int]], System]:
-    """``features_by_motion``'s rows for a sequence directory, and the system that tracked it (its trajectory)."""
+    """(frame, image motion px, points found, edgelets found) for each frame of a sequence directory with a pose
+    in the map's frame after another, and the system that tracked it (its trajectory and timings)."""
     camera = load_camera(seq / "camera.yaml")
     found: list[tuple[int, np.ndarray, np.ndarray, int]] = []
     with open_dataset(seq, cfg.capture.default_fps) as source, System(camera, cfg, mode="sync") as system:

@@ -8,7 +8,9 @@ once as keyframes are (not timed), and every other frame is relocalised against 
 beforehand; numba compilation is excluded by a warm-up call. Wall-clock times on this machine. Then the edgelet
 candidates (Agility §4.3: Canny, linking, sub-pixel measurement) are extracted from each keyframe's image, the
 step the mapper runs once per keyframe before its epipolar search (issue target: 20 ms). Last, Fig. 5's
-points and edgelets found against image motion (``agility_features``, on desk_blur and the edge-rich bricks_blur).
+points and edgelets found against image motion (``agility_features``, on desk_blur and the edge-rich bricks_blur),
+and on the same scenes and desk_bricks the tracker's time per frame with edgelets and with points alone
+(``agility_tracking_cost``, §9.2: 12 -> 18 ms).
 """
 
 from __future__ import annotations
@@ -28,7 +30,8 @@ from ..map.map import Map
 from ..synthetic import ensure_sequence, load_scene
 from ..tracking.relocaliser import Relocaliser
 from ..tracking.rotation_estimator import RotationEstimator
-from .agility_features import FIG5_SCENES, features_by_motion
+from .agility_features import FIG5_SCENES, print_features_by_motion, run_features_by_motion
+from .agility_tracking_cost import EXTRA_SCENES, print_tracking_cost, tracking_cost
 
 TARGET_MS = {"rotation": 0.5, "compare": 1.0, "align": 0.5, "reloc": 1.5, "edgelets": 20.0}
 ROW_NAMES = {
@@ -113,12 +116,27 @@ def run_agility_benchmark(cfg, scene: str = "two_wall", out=print, keyframes: in
         out(
             f"{ROW_NAMES[key].format(k=n):<36}{TARGET_MS[key]:>12.1f}{np.median(v):>13.3f}{np.percentile(v, 95):>10.3f}"
         )
-    result = {"rotation_ms": float(np.median(rows["rotation"])), "reloc_ms_250kf": float(np.median(rows["reloc"]))}
-    out(f"rotation_ms={result['rotation_ms']:.4f} reloc_ms_250kf={result['reloc_ms_250kf']:.4f}")
-    return {
-        "features_by_motion": {name: features_by_motion(cfg, name, out) for name in FIG5_SCENES},
-        **result,
-        "keyframes": n,
-        "nearest_fraction": float(np.mean(nearest)),
-        "stage_ms_median": {k: float(np.median(v)) for k, v in rows.items()},
+    result: dict = {
+        "rotation_ms": float(np.median(rows["rotation"])),
+        "reloc_ms_250kf": float(np.median(rows["reloc"])),
     }
+    out(f"rotation_ms={result['rotation_ms']:.4f} reloc_ms_250kf={result['reloc_ms_250kf']:.4f}")
+    result.update(keyframes=n, nearest_fraction=float(np.mean(nearest)))
+    result["stage_ms_median"] = {k: float(np.median(v)) for k, v in rows.items()}
+    result["features_by_motion"], result["tracking_ms"] = _fig5_and_tracking_cost(cfg, out)
+    return result
+
+
+def _fig5_and_tracking_cost(cfg, out) -> tuple[dict, dict]:
+    """Fig. 5's rows per scene, printed, and the tracker's cost of edgelets on the same runs (printed after)."""
+    fig5, costs = {}, {}
+    for name in FIG5_SCENES:
+        seq = ensure_sequence(name, cfg.synthetic)
+        rows, system = run_features_by_motion(seq, cfg)
+        print_features_by_motion(rows, name, out)
+        fig5[name] = rows
+        costs[name] = tracking_cost(seq, cfg, system)
+    for name in EXTRA_SCENES:
+        costs[name] = tracking_cost(ensure_sequence(name, cfg.synthetic), cfg)
+    print_tracking_cost(costs, out)
+    return fig5, costs
