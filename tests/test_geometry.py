@@ -29,6 +29,24 @@ def test_so3_exp_log_round_trip(angle):
         assert np.allclose(np.linalg.norm(w2, axis=1), angle, atol=1e-12)
 
 
+@pytest.mark.parametrize(
+    "angle", [0.0, 1e-12, 1e-9, 1e-6, 1e-3, 1e-2, 0.5, 2.0, np.pi - 1e-3, np.pi - 1e-6, np.pi - 1e-9, np.pi]
+)
+def test_single_elements_match_the_batched_maps(angle):
+    """``so3``/``se3`` exp and log of one element go through ``lie_one_kernels``; a batch of two through numpy."""
+    w = _random_axes(20) * angle
+    v = RNG.normal(scale=0.3, size=(20, 3))
+    mu = np.concatenate([v, w], axis=1)
+    R, T = so3.exp(w), se3.exp(mu)  # batched: the reference
+    for i in range(20):
+        assert np.abs(so3.exp(w[i]) - R[i]).max() < 1e-15
+        assert np.abs(se3.exp(mu[i]) - T[i]).max() < 1e-15
+        pair = np.stack([R[i], R[i]])
+        assert np.abs(so3.log(R[i]) - so3.log(pair)[0]).max() < 1e-14
+        pair = np.stack([T[i], T[i]])
+        assert np.abs(se3.log(T[i]) - se3.log(pair)[0]).max() < 1e-13
+
+
 @pytest.mark.parametrize("angle", [0.0, 1e-9, 1e-4, 1.0, 3.0, np.pi - 1e-7])
 def test_se3_exp_log_round_trip(angle):
     mu = np.concatenate([RNG.normal(size=(50, 3)) * 2.0, _random_axes(50) * angle], axis=1)

@@ -8,11 +8,14 @@ from __future__ import annotations
 import numpy as np
 
 from . import so3
+from .lie_one_kernels import se3_exp_one, se3_log_one
 
 
 def exp(mu: np.ndarray) -> np.ndarray:
     """exp: (..., 6) -> (..., 4, 4)."""
     mu = np.asarray(mu, dtype=np.float64)
+    if mu.shape == (6,):
+        return se3_exp_one(mu)
     v, w = mu[..., :3], mu[..., 3:]
     T = np.zeros(mu.shape[:-1] + (4, 4))
     T[..., :3, :3] = so3.exp(w)
@@ -24,6 +27,8 @@ def exp(mu: np.ndarray) -> np.ndarray:
 def log(T: np.ndarray) -> np.ndarray:
     """log: (..., 4, 4) -> (..., 6) with rotation angle in [0, π]."""
     T = np.asarray(T, dtype=np.float64)
+    if T.shape == (4, 4):
+        return se3_log_one(T)
     w = so3.log(T[..., :3, :3])
     v = np.einsum("...ij,...j->...i", so3.left_jacobian_inv(w), T[..., :3, 3])
     return np.concatenate([v, w], axis=-1)

@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-_SMALL = 1e-5
-_SERIES = 1e-2
+from .lie_one_kernels import SERIES as _SERIES
+from .lie_one_kernels import SMALL as _SMALL
+from .lie_one_kernels import so3_exp_one, so3_log_one
 
 
 def hat(w: np.ndarray) -> np.ndarray:
@@ -50,6 +51,8 @@ def _rodrigues_coeffs(theta: np.ndarray):
 def exp(w: np.ndarray) -> np.ndarray:
     """Rotation matrices from rotation vectors (..., 3) -> (..., 3, 3)."""
     w = np.asarray(w, dtype=np.float64)
+    if w.shape == (3,):
+        return so3_exp_one(w)
     theta = np.linalg.norm(w, axis=-1)
     A, B, _ = _rodrigues_coeffs(theta)
     W = hat(w)
@@ -131,6 +134,9 @@ def from_quaternion(q: np.ndarray) -> np.ndarray:
 
 def log(R: np.ndarray) -> np.ndarray:
     """Rotation vectors (..., 3) with angle in [0, π] from rotation matrices (..., 3, 3)."""
+    R = np.asarray(R, dtype=np.float64)
+    if R.shape == (3, 3):
+        return so3_log_one(R)
     q = to_quaternion(R)
     v = q[..., :3]
     w = q[..., 3]
