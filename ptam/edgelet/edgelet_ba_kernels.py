@@ -26,6 +26,7 @@ from numba import njit
 
 from ..camera.camproj_kernels import project_jac
 from ..geometry.se3_kernels import se3_exp_into
+from .edgelet_projection_kernels import perpendicular_row
 
 
 @njit(nogil=True, cache=True, inline="always")
@@ -65,15 +66,7 @@ def measurement_rows(cam, T, E, z2, a, n, J, jp, je, r):
         Z = cz + z * dz
         u, v, _ = project_jac(cam, X, Y, Z, J)
         r[s] = n[0] * (u - a[0]) + n[1] * (v - a[1])
-        g0 = n[0] * J[0, 0] + n[1] * J[1, 0]
-        g1 = n[0] * J[0, 1] + n[1] * J[1, 1]
-        g2 = n[0] * J[0, 2] + n[1] * J[1, 2]
-        jp[s, 0] = g0
-        jp[s, 1] = g1
-        jp[s, 2] = g2
-        jp[s, 3] = Y * g2 - Z * g1
-        jp[s, 4] = Z * g0 - X * g2
-        jp[s, 5] = X * g1 - Y * g0
+        g0, g1, g2 = perpendicular_row(n[0], n[1], J, X, Y, Z, jp[s])
         gx = g0 * xc0 + g1 * xc1 + g2 * xc2
         gy = g0 * yc0 + g1 * yc1 + g2 * yc2
         je[s, 0] = gx

@@ -21,6 +21,22 @@ from ..camera.camproj_kernels import project_jac
 MIN_IMAGE_DIRECTION = 1e-12  # |d| below this (an edgelet seen end-on) cannot be projected
 
 
+@njit(nogil=True, cache=True, inline="always")
+def perpendicular_row(nx, ny, J, X, Y, Z, row):
+    """row (6,) = n̂ᵀ ∂CamProj/∂X_c · [I | −[X_c]×] (eq. 8, eq. 11) for unit image normal (nx, ny), the projection
+    Jacobian J (2×3) at the camera-frame point (X, Y, Z); returns n̂ᵀJ, its first three entries."""
+    g0 = nx * J[0, 0] + ny * J[1, 0]
+    g1 = nx * J[0, 1] + ny * J[1, 1]
+    g2 = nx * J[0, 2] + ny * J[1, 2]
+    row[0] = g0
+    row[1] = g1
+    row[2] = g2
+    row[3] = Y * g2 - Z * g1
+    row[4] = Z * g0 - X * g2
+    row[5] = X * g1 - Y * g0
+    return g0, g1, g2
+
+
 @njit(nogil=True, cache=True)
 def edgelet_projection(cam, T, centre, direction, with_jacobian):
     """-> centre px (N, 2), direction d (N, 2) px per unit length, unit normal (N, 2) dark → light, valid (N,)
@@ -64,13 +80,5 @@ def edgelet_projection(cam, T, centre, direction, with_jacobian):
         normal[i, 1] = ny
         valid[i] = ok and length > MIN_IMAGE_DIRECTION and math.isfinite(u) and math.isfinite(v)
         if with_jacobian:
-            g0 = nx * J[0, 0] + ny * J[1, 0]
-            g1 = nx * J[0, 1] + ny * J[1, 1]
-            g2 = nx * J[0, 2] + ny * J[1, 2]
-            jac[i, 0] = g0
-            jac[i, 1] = g1
-            jac[i, 2] = g2
-            jac[i, 3] = Y * g2 - Z * g1
-            jac[i, 4] = Z * g0 - X * g2
-            jac[i, 5] = X * g1 - Y * g0
+            perpendicular_row(nx, ny, J, X, Y, Z, jac[i])
     return uv, d, normal, valid, Xc, jac

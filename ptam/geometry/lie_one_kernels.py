@@ -35,24 +35,25 @@ def rodrigues_coeffs(theta):
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _hat_sq(w, W, W2):
-    """W = [ω]× and W2 = W·W."""
+def _rotation_terms(w):
+    """θ = |ω|, W = [ω]× and W² = W·W of a rotation vector ω (3,)."""
+    theta = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    W = np.empty((3, 3))
     W[0, 0], W[0, 1], W[0, 2] = 0.0, -w[2], w[1]
     W[1, 0], W[1, 1], W[1, 2] = w[2], 0.0, -w[0]
     W[2, 0], W[2, 1], W[2, 2] = -w[1], w[0], 0.0
+    W2 = np.empty((3, 3))
     for r in range(3):
         for c in range(3):
             W2[r, c] = W[r, 0] * W[0, c] + W[r, 1] * W[1, c] + W[r, 2] * W[2, c]
+    return theta, W, W2
 
 
 @njit(nogil=True, cache=True)
 def so3_exp_one(w):
     """exp: (3,) -> (3, 3), Rodrigues' R = I + A·W + B·W² (``so3.exp``)."""
-    theta = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    theta, W, W2 = _rotation_terms(w)
     A, B, _ = rodrigues_coeffs(theta)
-    W = np.empty((3, 3))
-    W2 = np.empty((3, 3))
-    _hat_sq(w, W, W2)
     R = np.empty((3, 3))
     for r in range(3):
         for c in range(3):
@@ -63,12 +64,8 @@ def so3_exp_one(w):
 @njit(nogil=True, cache=True)
 def se3_exp_one(mu):
     """exp: (6,) μ = (translation, rotation) -> (4, 4), t = (I + B·W + C·W²)·v (``se3.exp``)."""
-    w = mu[3:]
-    theta = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    theta, W, W2 = _rotation_terms(mu[3:])
     A, B, C = rodrigues_coeffs(theta)
-    W = np.empty((3, 3))
-    W2 = np.empty((3, 3))
-    _hat_sq(w, W, W2)
     T = np.zeros((4, 4))
     for r in range(3):
         t = 0.0
@@ -124,15 +121,12 @@ def so3_log_one(R):
 def se3_log_one(T):
     """log: (4, 4) -> (6,) μ = (translation, rotation), v = V(ω)⁻¹·t with V⁻¹ = I − ½W + D·W² (``se3.log``)."""
     w = so3_log_one(T[:3, :3])
-    theta = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    theta, W, W2 = _rotation_terms(w)
     t2 = theta * theta
     if theta < SERIES:
         D = 1.0 / 12.0 + t2 / 720.0 + t2 * t2 / 30240.0 + t2**3 / 1209600.0
     else:
         D = (1.0 - 0.5 * theta / math.tan(0.5 * theta)) / t2
-    W = np.empty((3, 3))
-    W2 = np.empty((3, 3))
-    _hat_sq(w, W, W2)
     mu = np.empty(6)
     for r in range(3):
         v = 0.0
