@@ -6,7 +6,6 @@ import pytest
 from ptam.edgelet.edgelet import Edgelets, frames_from_first_view, perp
 from ptam.edgelet.edgelet_projection import (
     blur_lengths,
-    perpendicular_pose_jacobian,
     project_edgelets,
     project_edgelets_with_jacobian,
 )
@@ -99,7 +98,7 @@ def test_tracking_jacobian_matches_finite_differences(name):
     rng = np.random.default_rng(4)
     e = random_edgelets(rng, 60)
     T = random_pose(rng)
-    J = perpendicular_pose_jacobian(cam, T, e)
+    J = project_edgelets_with_jacobian(cam, T, e)[1]
     p = project_edgelets(cam, T, e)
     h = 1e-6
     fd = np.zeros_like(J)
@@ -139,7 +138,7 @@ def test_blur_length_of_a_sideways_slide():
     """A vertical edge 2 m ahead, the camera sliding 1 cm along x during the exposure: l = f·0.01/2 px (eq. 10)."""
     cam = CAMERAS["pinhole"]
     e = Edgelets(np.array([[0.0, 0.0, 2.0]]), np.array([[0.0, 1.0, 0.0]]), np.array([[1.0, 0.0, 0.0]]))
-    J = perpendicular_pose_jacobian(cam, np.eye(4), e)
+    J = project_edgelets_with_jacobian(cam, np.eye(4), e)[1]
     gamma = np.array([0.01, 0.0, 0.0, 0.0, 0.0, 0.0])
     assert np.isclose(blur_lengths(J, gamma)[0], cam.fx * 0.01 / 2.0, rtol=1e-9)
     assert np.isclose(blur_lengths(J, np.array([0, 0.01, 0, 0, 0, 0.0]))[0], 0.0, atol=1e-12)  # along the edge

@@ -15,7 +15,6 @@ from .edgelet_measure import LineMeasurements, measure_in_keyframe
 from .edgelet_projection import (
     ImageEdgelets,
     blur_lengths,
-    perpendicular_pose_jacobian,
     project_edgelets,
     project_edgelets_with_jacobian,
 )
@@ -44,7 +43,6 @@ __all__ = [
     "maximal_edgels",
     "measure_in_keyframe",
     "perp",
-    "perpendicular_pose_jacobian",
     "project_edgelets",
     "project_edgelets_with_jacobian",
     "refine_edgelets",

@@ -59,11 +59,6 @@ def project_edgelets_with_jacobian(
     return ImageEdgelets(c, d, n, valid, Xc), J
 
 
-def perpendicular_pose_jacobian(camera: CameraModel, T_cw: np.ndarray, edgelets: Edgelets) -> np.ndarray:
-    """(N, 6) ∂ε/∂μ_C of each edgelet's perpendicular displacement, eq. 11, with n̂ from the projection."""
-    return project_edgelets_with_jacobian(camera, T_cw, edgelets)[1]
-
-
 def blur_lengths(jacobian: np.ndarray, gamma: np.ndarray) -> np.ndarray:
     """Edge-normal blur l = |J γ_C| (eq. 10) for Jacobians (N, 6) and the camera motion during exposure (6,)."""
     return np.abs(np.asarray(jacobian, dtype=np.float64) @ np.asarray(gamma, dtype=np.float64))
