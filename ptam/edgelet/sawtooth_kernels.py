@@ -88,9 +88,57 @@ def sawtooth_search(img, centres, normals, blur, radius, t_min, min_len, max_len
     return offset, response, found
 
 
+@njit(nogil=True, cache=True, inline="always")
+def _sample_outwards(img, x, y, nx, ny, sig, centre, lo, hi, new_lo, new_hi):
+    """Extend the signal ``sig`` (sig[centre + t] = img at (x, y) + t·(nx, ny)), sampled on [lo, hi], to
+    [new_lo, new_hi]; -> (new_lo, new_hi). Beyond the image a sample repeats the last one inside it: the samples
+    inside the image are one run along the line, and the centre (sampled first) is among them."""
+    for j in range(lo - 1, new_lo - 1, -1):
+        v, ok = bilinear(img, x + (j - centre) * nx, y + (j - centre) * ny)
+        sig[j] = v if ok else sig[j + 1]
+    for j in range(hi + 1, new_hi + 1):
+        v, ok = bilinear(img, x + (j - centre) * nx, y + (j - centre) * ny)
+        sig[j] = v if ok else sig[j - 1]
+    return new_lo, new_hi
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _whole_signal(img, x, y, nx, ny, sig, centre):
+    """sig[j] = img at (x, y) + (j − centre)·(nx, ny) for every j, those beyond the image repeating the last one
+    inside it; -> the last index, or −1 when no sample is inside."""
+    first_ok = -1
+    last_ok = -1
+    for j in range(sig.shape[0]):
+        v, ok = bilinear(img, x + (j - centre) * nx, y + (j - centre) * ny)
+        sig[j] = v
+        if ok:
+            if first_ok < 0:
+                first_ok = j
+            last_ok = j
+    if first_ok < 0:
+        return -1
+    for j in range(first_ok):
+        sig[j] = sig[first_ok]
+    for j in range(last_ok + 1, sig.shape[0]):
+        sig[j] = sig[last_ok]
+    return sig.shape[0] - 1
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _local_max(resp, k, floor):
+    r = resp[k]
+    return r > floor and r >= resp[k - 1] and r > resp[k + 1]
+
+
 @njit(nogil=True, cache=True)
 def visibility_table(img, centres, normals, blurs, max_search, centre_tol, tmin_frac, rsearch_frac, min_len, max_len):
-    """(§5.2) -> visible (N, B), r_search (N, B), t_min (N, B), max_blur (N,) for odd box ``blurs`` (B,)."""
+    """(§5.2) -> visible (N, B), r_search (N, B), t_min (N, B), max_blur (N,) for odd box ``blurs`` (B,).
+
+    The work per blur is kept to what decides the table: the signal is sampled only as far as the blurs tried so
+    far read it (most rows stop after a few short blurs), a maximum at the centre can only be within
+    ``centre_tol`` + ½ samples of it (the parabola moves a peak by at most ½), and the nearest rival maximum is
+    sought outwards from the centre.
+    """
     n = centres.shape[0]
     nb = blurs.shape[0]
     visible = np.zeros((n, nb), dtype=np.bool_)
@@ -104,62 +152,67 @@ def visibility_table(img, centres, normals, blurs, max_search, centre_tol, tmin_
     R = 2 * int(max_search)  # responses are examined to twice the largest search radius (r_search = ½ r_near)
     ext = R + 1 + hmax + bmax // 2 + 1
     sig = np.empty(2 * ext + 1)
-    csum = np.empty(2 * ext + 2)
     blurred = np.empty(2 * ext + 1)
-    w = np.empty(2 * hmax + 1)
+    w = np.empty((nb, 2 * hmax + 1))  # each blur's sawtooth taps, the same for every edgelet
+    hw = np.empty(nb, np.int64)
+    for b in range(nb):
+        hw[b] = ramp_weights(min(max_len, max(min_len, float(blurs[b]))), w[b])
     resp = np.empty(2 * R + 3)
     p0 = np.empty(2 * ext + 2)
     p1 = np.empty(2 * ext + 2)
+    reach = min(R, int(math.floor(centre_tol + 0.5)))  # the centre maximum's index lies within this of R + 1
     for i in range(n):
         nl = math.hypot(normals[i, 0], normals[i, 1])
         if not nl > 0.0:
             continue
         nx = normals[i, 0] / nl
         ny = normals[i, 1] / nl
-        # The signal along the normal; samples beyond the image repeat the last one inside it.
-        first_ok = -1
-        last_ok = -1
-        for j in range(2 * ext + 1):
-            t = j - ext
-            v, ok = bilinear(img, centres[i, 0] + t * nx, centres[i, 1] + t * ny)
-            sig[j] = v
-            if ok:
-                if first_ok < 0:
-                    first_ok = j
-                last_ok = j
-        if first_ok < 0:
-            continue
-        for j in range(first_ok):
-            sig[j] = sig[first_ok]
-        for j in range(last_ok + 1, 2 * ext + 1):
-            sig[j] = sig[last_ok]
-        csum[0] = 0.0
-        for j in range(2 * ext + 1):
-            csum[j + 1] = csum[j] + sig[j]
+        x = centres[i, 0]
+        y = centres[i, 1]
+        v, ok = bilinear(img, x, y)
+        if ok:
+            sig[ext] = v
+            lo = ext
+            hi = ext
+        else:  # a centre outside the image (never a measured one): the whole signal, as far as it is inside
+            lo = 0
+            hi = _whole_signal(img, x, y, nx, ny, sig, ext)
+            if hi < 0:
+                continue
         for b in range(nb):
             L = int(blurs[b])
             bh = L // 2
-            h = ramp_weights(min(max_len, max(min_len, float(L))), w)
-            for j in range(ext - R - 1 - h, ext + R + 2 + h):  # the samples the correlation reads
-                blurred[j] = (csum[j + bh + 1] - csum[j - bh]) / (2 * bh + 1)
-            correlate(blurred, ext, h, w, -R - 1, R + 1, resp, p0, p1)
+            h = hw[b]
+            a = ext - R - 1 - h  # the samples the correlation reads: a … e, box-blurred from a − bh … e + bh
+            e = ext + R + 1 + h
+            if a - bh < lo or e + bh > hi:
+                lo, hi = _sample_outwards(img, x, y, nx, ny, sig, ext, lo, hi, min(lo, a - bh), max(hi, e + bh))
+            s = 0.0
+            for j in range(a - bh, a + bh + 1):
+                s += sig[j]
+            inv = 1.0 / (2 * bh + 1)
+            blurred[a] = s * inv
+            for j in range(a + 1, e + 1):
+                s += sig[j + bh] - sig[j - bh - 1]
+                blurred[j] = s * inv
+            correlate(blurred, ext, h, w[b], -R - 1, R + 1, resp, p0, p1)
             centre_k = -1
-            for k in range(1, 2 * R + 2):
-                r = resp[k]
-                if r <= 0.0 or r < resp[k - 1] or r <= resp[k + 1]:
+            for k in range(max(1, R + 1 - reach), min(2 * R + 1, R + 1 + reach) + 1):
+                if not _local_max(resp, k, 0.0):
                     continue
-                t = k - R - 1 + parabola_peak(resp[k - 1], r, resp[k + 1])
-                if abs(t) <= centre_tol and (centre_k < 0 or r > resp[centre_k]):
+                t = k - R - 1 + parabola_peak(resp[k - 1], resp[k], resp[k + 1])
+                if abs(t) <= centre_tol and (centre_k < 0 or resp[k] > resp[centre_k]):
                     centre_k = k
             if centre_k < 0:
                 break
             tmin = tmin_frac * resp[centre_k]
-            near = float(R)  # no other maximum within 2·max_search: r_near ≥ 2·max_search
-            for k in range(1, 2 * R + 2):
-                r = resp[k]
-                if k == centre_k or r <= tmin or r < resp[k - 1] or r <= resp[k + 1]:
-                    continue
-                near = min(near, abs(k - R - 1) * 1.0)
+            near = R  # no other maximum within 2·max_search: r_near ≥ 2·max_search
+            for d in range(R + 1):
+                if (R + 1 - d != centre_k and _local_max(resp, R + 1 - d, tmin)) or (
+                    d > 0 and R + 1 + d != centre_k and _local_max(resp, R + 1 + d, tmin)
+                ):
+                    near = d
+                    break
             visible[i, b] = True
             t_min[i, b] = tmin
             r_search[i, b] = min(float(max_search), rsearch_frac * near)
