@@ -3,14 +3,17 @@
 import numpy as np
 import pytest
 
-from ptam.edgelet.edgelet import Edgelets, frames_from_first_view, perp
+from ptam.edgelet.edgelet import Edgelets, perp
+from ptam.edgelet.edgelet_measure import LineMeasurements
 from ptam.edgelet.edgelet_projection import (
     blur_lengths,
     project_edgelets,
     project_edgelets_with_jacobian,
 )
+from ptam.edgelet.edgelet_triangulation import line_planes, triangulate_edgelets
 from ptam.geometry import se3
 from tests.reference.edgelet_projection import edgelet_projection_ref
+from tests.reference.edgelet_triangulation import line_planes_ref, triangulate_ref
 from tests.support.cameras import CAMERAS
 
 
@@ -74,22 +77,66 @@ def test_projection_direction_is_the_derivative_along_the_edgelet(name):
 
 
 @pytest.mark.parametrize("name", list(CAMERAS))
-def test_polarity_follows_the_first_view(name):
-    """Frames built from a first view keep the dark-to-light side: in another view on the same side of the
-    edgelet, the projected x-axis (dark -> light in space) lies on the side of ``perp(d)``."""
+def test_polarity_follows_the_first_view(name, cfg):
+    """Edgelets triangulated with a measured polarity in their source view keep its dark-to-light side: projected
+    back, perp(d) is the measured normal; in another view on the same side of the edgelet, the projected x-axis
+    (dark -> light in space) lies on the side of ``perp(d)``."""
     cam = CAMERAS[name]
     rng = np.random.default_rng(3)
     e = random_edgelets(rng, 200)
     T0 = random_pose(rng)
-    p0 = project_edgelets(cam, T0, e)
-    n_img = p0.normal * rng.choice([-1.0, 1.0], (200, 1))  # the measured polarity in the first view
-    J0 = cam.project_jacobian(p0.camera_centre)
-    f = frames_from_first_view(e.centre, e.direction, T0, n_img, J0)
-    assert np.allclose(project_edgelets(cam, T0, f).normal, n_img)
+    T_tgt = se3.exp(np.array([0.2, 0.15, 0.0, 0.0, 0.0, 0.0])) @ T0  # a baseline across every direction
+    p0, pt = project_edgelets(cam, T0, e), project_edgelets(cam, T_tgt, e)
+    sign = rng.choice([-1.0, 1.0], (200, 1))  # the measured polarity in the first view
+    lines = [LineMeasurements(p.centre, s * p.unit_direction, *_exact(200)) for p, s in ((p0, sign), (pt, 1.0))]
+    tri = triangulate_edgelets(cam, T0, lines[0], T_tgt, lines[1], cfg.edgelets)
+    met = np.all(np.isfinite(tri.edgelets.normal), axis=1) & (tri.plane_angle_deg > 1.0)  # exact lines: any angle
+    f = tri.edgelets.subset(met)
+    assert met.mean() > 0.8
+    assert np.allclose(project_edgelets(cam, T0, f).normal, perp(lines[0].b[met]), atol=1e-6)
     T1 = random_pose(rng, rot=0.1, trans=0.05) @ T0
     p1 = project_edgelets(cam, T1, f)
     x_img = np.einsum("nij,nj->ni", cam.project_jacobian(p1.camera_centre), f.normal @ T1[:3, :3].T)
     assert np.all(np.sum(x_img * p1.normal, axis=1) > 0)
+
+
+def _exact(n):
+    """A LineMeasurements' fields after a, b for noise-free lines: rms, samples found, points, found, ok."""
+    return np.zeros(n), np.full(n, 5), None, None, np.ones(n, bool)
+
+
+@pytest.mark.parametrize("name", list(CAMERAS))
+def test_triangulation_kernels_match_the_numpy_reference(name, cfg):
+    """``plane_normals`` and ``triangulate_lines`` against numpy, on noisy lines in two views: hypotheses with
+    planes at every angle, some meeting behind a camera, some end-on (direction along the viewing ray)."""
+    cam = CAMERAS[name]
+    rng = np.random.default_rng(11)
+    e = random_edgelets(rng, 300)
+    T0, T1 = random_pose(rng), random_pose(rng, rot=0.3, trans=0.3)
+    p0, p1 = project_edgelets(cam, T0, e), project_edgelets(cam, T1, e)
+    a0, a1 = p0.centre + rng.normal(0, 2.0, (300, 2)), p1.centre + rng.normal(0, 2.0, (300, 2))
+    turn = rng.normal(0, 0.2, (300, 1))
+    b0 = p0.unit_direction * np.cos(turn) + perp(p0.unit_direction) * np.sin(turn)
+    b1 = p1.unit_direction * rng.choice([-1.0, 1.0], (300, 1))
+    b0[:3] = 0.0  # a zero direction: no plane
+    m, o = line_planes(cam, T1, a1, b1)
+    m_ref, o_ref = line_planes_ref(cam, T1, a1, b1)
+    assert np.allclose(m, m_ref, rtol=0, atol=1e-9) and np.allclose(o, o_ref, rtol=0, atol=1e-9)
+    lines = [LineMeasurements(a, b, *_exact(300)) for a, b in ((a0, b0), (a1, b1))]
+    tri = triangulate_edgelets(cam, T0, lines[0], T1, lines[1], cfg.edgelets)
+    ref, sin, s, z_tgt = triangulate_ref(cam, T0, a0, b0, T1, a1, b1)
+    angle = np.degrees(np.arcsin(np.clip(sin, 0.0, 1.0)))
+    assert np.allclose(tri.plane_angle_deg, angle, equal_nan=True, atol=1e-7)
+    finite = np.all(np.isfinite(ref.centre), axis=1) & np.all(np.isfinite(ref.normal), axis=1)
+    assert not finite[:3].any() and finite.sum() > 250
+    assert np.array_equal(np.all(np.isfinite(tri.edgelets.normal), axis=1) & finite, finite)
+    for got, want in zip(
+        (tri.edgelets.centre, tri.edgelets.direction, tri.edgelets.normal), (ref.centre, ref.direction, ref.normal)
+    ):
+        err = np.abs(got[finite] - want[finite]) / np.maximum(1.0, np.abs(want[finite]))
+        assert err.max() < 1e-9, err.max()
+    behind = finite & ((s <= 0) | (z_tgt <= 0))
+    assert behind.any() and not tri.ok[behind].any()
 
 
 @pytest.mark.parametrize("name", list(CAMERAS))

@@ -37,6 +37,7 @@ MAPPER_KERNELS = [
     "ptam.edgelet.sawtooth_kernels.sawtooth_search",
     "ptam.edgelet.sawtooth_kernels.visibility_table",
     "ptam.edgelet.edgelet_projection_kernels.edgelet_projection",
+    "ptam.edgelet.edgelet_triangulation_kernels.triangulate_lines",
     "ptam.tracking.pose_kernels.pose_irls_edgelets",
 ]
 

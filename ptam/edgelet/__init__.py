@@ -8,7 +8,7 @@ distances per measurement (``edgelet_ba``), and tracked at frame rate by a blur-
 per-keyframe visibility table (``sawtooth``).
 """
 
-from .edgelet import EDGELET_DOF, Edgelets, frames_from_first_view, perp
+from .edgelet import EDGELET_DOF, Edgelets, perp
 from .edgelet_ba import EdgeletObservations, EdgeletTerms, edgelet_terms, refine_edgelets, sample_along
 from .edgelet_candidates import EdgeletCandidates, extract_candidates, gradient_at, maximal_edgels, smoothed
 from .edgelet_measure import LineMeasurements, measure_in_keyframe
@@ -38,7 +38,6 @@ __all__ = [
     "edgelet_terms",
     "extract_candidates",
     "gradient_at",
-    "frames_from_first_view",
     "line_planes",
     "maximal_edgels",
     "measure_in_keyframe",

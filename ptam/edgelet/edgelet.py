@@ -9,8 +9,8 @@ each (N, 3) in world coordinates.
 Polarity in other views. The paper does not use the x-axis for visibility; it infers the dark-to-light
 direction "from the edgelet direction" (§4.1). Here that convention is: the 3-D direction is oriented so that
 in the image the dark-to-light normal is ``perp(d) = (−d_y, d_x)`` of the projected direction d (x right,
-y down: an edgelet running to the right has its light side below). ``frames_from_first_view`` builds frames
-that obey it, and ``ptam.edgelet.edgelet_projection`` reports image normals by it.
+y down: an edgelet running to the right has its light side below). New edgelets' frames are built to obey
+it (``edgelet_triangulation_kernels``), and ``ptam.edgelet.edgelet_projection`` reports image normals by it.
 
 The 4-DOF update used by bundle adjustment (§4.4, eq. 9) is right-multiplied, E_WE ← E_WE · exp(μ), with
 μ = (t_x, t_y, ω_x, ω_y) embedded in the six-vector (t_x, t_y, 0, ω_x, ω_y, 0): translation along and
@@ -89,25 +89,3 @@ class Edgelets:
         """Direction reversed where ``mask``; the normal kept, so the frame stays right-handed."""
         s = np.where(np.asarray(mask, dtype=bool), -1.0, 1.0)[:, None]
         return Edgelets(self.centre, self.direction * s, self.normal)
-
-
-def frames_from_first_view(
-    centre_w: np.ndarray, direction_w: np.ndarray, T_cw: np.ndarray, image_normal: np.ndarray, proj_jac: np.ndarray
-) -> Edgelets:
-    """Edgelets whose x-axis points dark → light in the view ``T_cw`` where they were first observed (§4.1).
-
-    ``image_normal`` (N, 2) is the measured dark-to-light normal there and ``proj_jac`` (N, 2, 3) the camera
-    model's ∂(u, v)/∂X_c at the centres. The x-axis is the direction perpendicular to both the edgelet and the
-    viewing ray, signed so that it moves the projection towards the light side; the direction is signed so
-    that ``perp`` of its projection is the dark-to-light normal (the polarity convention of this module).
-    """
-    R = np.asarray(T_cw, dtype=np.float64)[:3, :3]
-    Xc = np.asarray(centre_w, dtype=np.float64) @ R.T + T_cw[:3, 3]
-    zc = _unit(np.asarray(direction_w, dtype=np.float64)) @ R.T
-    n_img = np.asarray(image_normal, dtype=np.float64)
-    d_img = np.einsum("nij,nj->ni", proj_jac, zc)
-    zc = zc * np.where(np.sum(perp(d_img) * n_img, axis=-1) < 0, -1.0, 1.0)[:, None]
-    xc = _unit(np.cross(zc, Xc))
-    x_img = np.einsum("nij,nj->ni", proj_jac, xc)
-    xc = xc * np.where(np.sum(x_img * n_img, axis=-1) < 0, -1.0, 1.0)[:, None]
-    return Edgelets(np.asarray(centre_w, dtype=np.float64), zc @ R, xc @ R).orthonormalised()

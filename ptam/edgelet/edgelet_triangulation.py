@@ -23,10 +23,10 @@ import numpy as np
 
 from ..camera import CameraModel
 from ..config.edgelet_section import EdgeletConfig
-from ..geometry import se3
-from .edgelet import Edgelets, frames_from_first_view, perp
+from .edgelet import Edgelets, perp
 from .edgelet_measure import LineMeasurements, measure_in_keyframe
 from .edgelet_projection import project_edgelets
+from .edgelet_triangulation_kernels import plane_normals, triangulate_lines
 
 _TANGENT_STEP_PX = 0.01  # central difference of the back-projected ray along the image line
 
@@ -51,21 +51,19 @@ class Verification:
     measurement: LineMeasurements
 
 
-def _rays(camera: CameraModel, uv: np.ndarray) -> np.ndarray:
-    xy = camera.unproject(uv)
-    return np.concatenate([xy, np.ones(xy.shape[:-1] + (1,))], axis=-1)
+def _line_rays(camera: CameraModel, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(N, 3, 3): the rays (z = 1) through each line's centre a and through a ± ε·b, from one unprojection."""
+    a = np.asarray(a, dtype=np.float64).reshape(-1, 2)
+    step = np.asarray(b, dtype=np.float64).reshape(-1, 2) * _TANGENT_STEP_PX
+    xy = camera.unproject(np.stack([a, a + step, a - step], axis=1).reshape(-1, 2)).reshape(-1, 3, 2)
+    rays = np.ones((len(a), 3, 3))
+    rays[:, :, :2] = xy
+    return rays
 
 
 def line_planes(camera: CameraModel, T_cw: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """World planes m·X = o (unit m (N, 3), o (N,)) through the camera centre and the image lines a + λb."""
-    T_cw = np.asarray(T_cw, dtype=np.float64)
-    b = np.asarray(b, dtype=np.float64) * _TANGENT_STEP_PX
-    tangent = _rays(camera, a + b) - _rays(camera, a - b)
-    m_c = np.cross(_rays(camera, a), tangent)
-    m_w = m_c @ T_cw[:3, :3]
-    m_w /= np.linalg.norm(m_w, axis=-1, keepdims=True)
-    centre = se3.inv(T_cw)[:3, 3]
-    return m_w, m_w @ centre
+    return plane_normals(np.ascontiguousarray(T_cw, dtype=np.float64), _line_rays(camera, a, b))
 
 
 def triangulate_edgelets(
@@ -77,26 +75,20 @@ def triangulate_edgelets(
     cfg: EdgeletConfig,
 ) -> Triangulation:
     """3-D edgelets from lines measured in a source and a target keyframe (row i of each is one hypothesis)."""
-    m1, _ = line_planes(camera, T_src, src.a, src.b)
-    m2, o2 = line_planes(camera, T_tgt, tgt.a, tgt.b)
-    D = np.cross(m1, m2)
-    sin = np.linalg.norm(D, axis=-1)
+    n = len(src.a)
+    rays = _line_rays(camera, np.concatenate([src.a, tgt.a]), np.concatenate([src.b, tgt.b]))
+    centre, direction, normal, sin, s, z_tgt = triangulate_lines(
+        camera.kernel_params(),
+        np.ascontiguousarray(T_src, dtype=np.float64),
+        rays[:n],
+        np.ascontiguousarray(T_tgt, dtype=np.float64),
+        rays[n:],
+        perp(src.b),
+    )
     angle = np.degrees(np.arcsin(np.clip(sin, 0.0, 1.0)))
-    D = D / np.where(sin > 0, sin, 1.0)[:, None]
-    T_ws = se3.inv(np.asarray(T_src, dtype=np.float64))
-    ray = _rays(camera, src.a) @ T_ws[:3, :3].T
-    C1 = T_ws[:3, 3]
-    den = np.sum(ray * m2, axis=-1)
-    s = (o2 - m2 @ C1) / np.where(np.abs(den) > 0, den, np.inf)
-    X = C1 + s[:, None] * ray
-    z_tgt = se3.transform(T_tgt, X)[:, 2]
-    Xc = se3.transform(T_src, X)
-    J = camera.project_jacobian(np.where(Xc[:, 2:3] > 0, Xc, 1.0))
-    with np.errstate(invalid="ignore", divide="ignore"):  # end-on or failed hypotheses: not ok below
-        edgelets = frames_from_first_view(X, D, T_src, perp(src.b), J)
     ok = src.ok & tgt.ok & (angle >= cfg.triangulate_min_plane_angle_deg) & (s > 0) & (z_tgt > 0)
-    finite = np.all(np.isfinite(X), axis=-1) & np.all(np.isfinite(edgelets.normal), axis=-1)
-    return Triangulation(edgelets, ok & finite, angle)
+    finite = np.all(np.isfinite(centre), axis=-1) & np.all(np.isfinite(normal), axis=-1)
+    return Triangulation(Edgelets(centre, direction, normal), ok & finite, angle)
 
 
 def verify_edgelets(
