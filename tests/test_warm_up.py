@@ -32,6 +32,7 @@ MAPPER_KERNELS = [
     "ptam.mapping.bundle_solve_kernels.ba_envelope_solve",
     "ptam.mapping.epipolar_kernels.epipolar_search",
     "ptam.mapping.edgelet_epipolar_kernels.curve_hits",
+    "ptam.mapping.edgelet_cull_kernels.polarity_cull",
     "ptam.edgelet.edgel_linker_kernels.link_edgels",
     "ptam.edgelet.edgelet_refine_kernels.refine_frames",
     "ptam.edgelet.sawtooth_kernels.sawtooth_search",

@@ -18,7 +18,14 @@ from .edgelet_projection import (
     project_edgelets,
     project_edgelets_with_jacobian,
 )
-from .edgelet_triangulation import Triangulation, Verification, line_planes, triangulate_edgelets, verify_edgelets
+from .edgelet_triangulation import (
+    Triangulation,
+    Verification,
+    line_planes,
+    line_rays,
+    triangulate_edgelets,
+    verify_edgelets,
+)
 from .sawtooth import SawtoothResult, VisibilityTable, build_visibility_table, search_edgelets, table_blurs
 
 __all__ = [
@@ -39,6 +46,7 @@ __all__ = [
     "extract_candidates",
     "gradient_at",
     "line_planes",
+    "line_rays",
     "maximal_edgels",
     "measure_in_keyframe",
     "perp",

@@ -51,7 +51,7 @@ class Verification:
     measurement: LineMeasurements
 
 
-def _line_rays(camera: CameraModel, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def line_rays(camera: CameraModel, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(N, 3, 3): the rays (z = 1) through each line's centre a and through a ± ε·b, from one unprojection."""
     a = np.asarray(a, dtype=np.float64).reshape(-1, 2)
     step = np.asarray(b, dtype=np.float64).reshape(-1, 2) * _TANGENT_STEP_PX
@@ -63,7 +63,7 @@ def _line_rays(camera: CameraModel, a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def line_planes(camera: CameraModel, T_cw: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """World planes m·X = o (unit m (N, 3), o (N,)) through the camera centre and the image lines a + λb."""
-    return plane_normals(np.ascontiguousarray(T_cw, dtype=np.float64), _line_rays(camera, a, b))
+    return plane_normals(np.ascontiguousarray(T_cw, dtype=np.float64), line_rays(camera, a, b))
 
 
 def triangulate_edgelets(
@@ -76,7 +76,7 @@ def triangulate_edgelets(
 ) -> Triangulation:
     """3-D edgelets from lines measured in a source and a target keyframe (row i of each is one hypothesis)."""
     n = len(src.a)
-    rays = _line_rays(camera, np.concatenate([src.a, tgt.a]), np.concatenate([src.b, tgt.b]))
+    rays = line_rays(camera, np.concatenate([src.a, tgt.a]), np.concatenate([src.b, tgt.b]))
     centre, direction, normal, sin, s, z_tgt = triangulate_lines(
         camera.kernel_params(),
         np.ascontiguousarray(T_src, dtype=np.float64),

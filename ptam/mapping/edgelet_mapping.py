@@ -40,7 +40,7 @@ from ..edgelet import (
     build_visibility_table,
     extract_candidates,
     gradient_at,
-    line_planes,
+    line_rays,
     maximal_edgels,
     measure_in_keyframe,
     perp,
@@ -52,6 +52,7 @@ from ..edgelet import (
 )
 from ..geometry import se3
 from .edgelet_aperture import aperture_retry
+from .edgelet_cull_kernels import polarity_cull
 from .edgelet_epipolar_kernels import curve_hits
 
 if TYPE_CHECKING:
@@ -276,24 +277,22 @@ def _cull(
     m: Map, camera: CameraModel, k: int, t: int, src: LineMeasurements, hits: _Hits, sm_t: np.ndarray, e
 ) -> _Hits:
     """Step 4's heuristics: the target gradient must have the candidate's polarity and cross the epipolar curve
-    at no less than ``epipolar_min_angle_deg``."""
+    at no less than ``epipolar_min_angle_deg`` (``edgelet_cull_kernels``)."""
     if len(hits.cand) == 0:
         return hits
-    g = gradient_at(sm_t, hits.uv)
-    gn = np.linalg.norm(g, axis=1)
-    g_hat = g / np.maximum(gn, np.finfo(float).tiny)[:, None]
-    crossing = np.abs(np.sum(g_hat * hits.tangent, axis=1)) >= np.sin(np.deg2rad(e.epipolar_min_angle_deg))
     T = m.kf_T_cw
-    plane, _ = line_planes(camera, T[k], src.a[hits.cand], src.b[hits.cand])
-    ray = np.concatenate([camera.unproject(src.a[hits.cand]), np.ones((len(hits.cand), 1))], axis=1)
-    Xk = ray * hits.z[:, None]
-    # The light side of the back-projected plane: the plane normal's image in k against the line's dark-to-light
-    # normal; that side's image in t must be the gradient's side.
-    light = np.einsum("nij,nj->ni", camera.project_jacobian(Xk), plane @ T[k][:3, :3].T)
-    side = np.sign(np.sum(light * perp(src.b[hits.cand]), axis=1))
-    Xt = se3.transform(T[t], se3.transform(se3.inv(T[k]), Xk))
-    light_t = np.einsum("nij,nj->ni", camera.project_jacobian(Xt), (plane @ T[t][:3, :3].T) * side[:, None])
-    return _keep(hits, (gn > 0) & crossing & (np.sum(light_t * g, axis=1) > 0) & (Xt[:, 2] > 0))
+    keep = polarity_cull(
+        camera.kernel_params(),
+        T[k],
+        T[t],
+        line_rays(camera, src.a[hits.cand], src.b[hits.cand]),
+        hits.z,
+        src.b[hits.cand],
+        gradient_at(sm_t, hits.uv),
+        np.ascontiguousarray(hits.tangent),
+        float(np.sin(np.deg2rad(e.epipolar_min_angle_deg))),
+    )
+    return _keep(hits, keep)
 
 
 def _measure_hits(m: Map, t: int, hits: _Hits, sm_t: np.ndarray, e) -> LineMeasurements:

@@ -5,6 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ptam.edgelet.edgelet import perp
+from ptam.geometry import se3
+from tests.reference.edgelet_triangulation import line_planes_ref
+
 
 def _samples(length, step):
     """Row, piece and fraction of the points every ``step`` along each row's polyline of piece lengths (n, s)."""
@@ -45,3 +49,21 @@ def curve_hits_ref(uv, seg_ok, length, inv_z, step, edgels, border):
     iz = inv_z[j] + frac * (inv_z[j + 1] - inv_z[j])
     tangent = seg[cand, j] / np.maximum(length[cand, j], np.finfo(float).tiny)[:, None]
     return cand[mid], pts[mid], iz[mid], tangent[mid]
+
+
+def polarity_cull_ref(camera, T_k, T_t, a, b, z, g, tangent, min_deg):
+    """§4.3 step 4 for matches at depth ``z`` along source lines (a, b) of keyframe k, with target gradients ``g``
+    and curve tangents ``tangent``: which to keep."""
+    gn = np.linalg.norm(g, axis=1)
+    g_hat = g / np.maximum(gn, np.finfo(float).tiny)[:, None]
+    crossing = np.abs(np.sum(g_hat * tangent, axis=1)) >= np.sin(np.deg2rad(min_deg))
+    plane, _ = line_planes_ref(camera, T_k, a, b)
+    ray = np.concatenate([camera.unproject(a), np.ones((len(a), 1))], axis=1)
+    Xk = ray * z[:, None]
+    light = np.einsum("nij,nj->ni", camera.project_jacobian(Xk), plane @ T_k[:3, :3].T)
+    side = np.sign(np.sum(light * perp(b), axis=1))
+    Xt = se3.transform(T_t, se3.transform(se3.inv(T_k), Xk))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        J_t = camera.project_jacobian(Xt)
+    light_t = np.einsum("nij,nj->ni", J_t, (plane @ T_t[:3, :3].T) * side[:, None])
+    return (gn > 0) & crossing & (np.sum(light_t * g, axis=1) > 0) & (Xt[:, 2] > 0)
