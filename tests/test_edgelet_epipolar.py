@@ -8,8 +8,8 @@ from ptam.edgelet.edgelet import perp
 from ptam.edgelet.edgelet_triangulation import line_rays
 from ptam.geometry import se3
 from ptam.mapping.edgelet_cull_kernels import polarity_cull
-from ptam.mapping.edgelet_epipolar_kernels import curve_hits
-from tests.reference.edgelet_epipolar import curve_hits_ref, polarity_cull_ref
+from ptam.mapping.edgelet_epipolar_kernels import curve_hits, curve_vertices
+from tests.reference.edgelet_epipolar import curve_hits_ref, curve_vertices_ref, polarity_cull_ref
 from tests.support.cameras import CAMERAS
 
 
@@ -75,3 +75,21 @@ def test_cull_kernel_matches_reference(name):
     Xt = se3.transform(T_t, se3.transform(se3.inv(T_k), rays[:, 0] * z[:, None]))
     # measured: 474-597 of the matches behind the target, 28-30 % kept
     assert (Xt[:, 2] < 0).sum() > 100 and 0.2 < got.mean() < 0.6 and not got[:60].any()
+
+
+@pytest.mark.parametrize("name", list(CAMERAS))
+def test_curve_vertices_match_reference(name):
+    """The epipolar curves' vertices (``curve_vertices``) against numpy: rays over the whole source image, depths
+    from 0.1 to 20 m, a target turned so that the near or far ends of some curves are behind it or beyond the
+    lens's range (measured: 69-85 % of the pieces valid)."""
+    cam = CAMERAS[name]
+    rng = np.random.default_rng(4)
+    a = rng.uniform([0, 0], [cam.width - 1, cam.height - 1], (300, 2))
+    ray = np.concatenate([cam.unproject(a), np.ones((300, 1))], axis=1)
+    z = 1.0 / np.linspace(1.0 / 0.3, 1.0 / 20.0, 9)
+    T_ts = se3.exp(np.array([0.15, 0.05, -0.05, 0.05, 0.3, 0.0]))
+    max_len = float(np.hypot(cam.width, cam.height))
+    uv, seg_ok, length = curve_vertices(cam.kernel_params(), T_ts, ray, z, max_len)
+    uv_ref, ok_ref, length_ref = curve_vertices_ref(cam, T_ts, ray, z, max_len)
+    assert np.array_equal(seg_ok, ok_ref) and 0.3 < seg_ok.mean() < 0.95, seg_ok.mean()
+    assert np.allclose(uv, uv_ref, rtol=1e-12, atol=1e-9) and np.allclose(length, length_ref, rtol=1e-12, atol=1e-9)

@@ -33,6 +33,8 @@ MAPPER_KERNELS = [
     "ptam.mapping.epipolar_kernels.epipolar_search",
     "ptam.mapping.edgelet_epipolar_kernels.curve_hits",
     "ptam.mapping.edgelet_cull_kernels.polarity_cull",
+    "ptam.mapping.edgelet_epipolar_kernels.curve_vertices",
+    "ptam.mapping.edgelet_aperture_kernels.aperture_free",
     "ptam.edgelet.edgel_linker_kernels.link_edgels",
     "ptam.edgelet.edgelet_refine_kernels.refine_frames",
     "ptam.edgelet.sawtooth_kernels.sawtooth_search",

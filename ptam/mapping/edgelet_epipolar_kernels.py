@@ -17,6 +17,8 @@ import math
 import numpy as np
 from numba import njit
 
+from ..camera.camproj_kernels import project
+
 
 @njit(nogil=True, cache=True)
 def _sample_count(length, step):
@@ -95,3 +97,34 @@ def curve_hits(uv, seg_ok, length, inv_z, step, edgels, border):
                 out += 1
                 first = -1
     return cand[:out], pts[:out], iz[:out], tangent[:out]
+
+
+@njit(nogil=True, cache=True)
+def curve_vertices(cam, T_ts, rays, z, max_len):
+    """The polylines ``curve_hits`` walks: each candidate's viewing ray ``rays[c]`` (z = 1, source frame) at the
+    depths ``z`` (s + 1,), moved into the target by ``T_ts`` and projected -> uv (n, s + 1, 2), and per piece
+    whether both its vertices are in front and within the lens's range (``seg_ok`` (n, s)) and its length in px,
+    at most ``max_len`` (``length`` (n, s), zero where not ok). A vertex outside that range is placed where
+    (1, 1, 1) projects, which no valid piece reaches."""
+    n = rays.shape[0]
+    v = z.shape[0]
+    uv = np.empty((n, v, 2))
+    front = np.empty(v, dtype=np.bool_)
+    seg_ok = np.zeros((n, v - 1), dtype=np.bool_)
+    length = np.zeros((n, v - 1))
+    bu, bv, _ = project(cam, 1.0, 1.0, 1.0)
+    for c in range(n):
+        for j in range(v):
+            x, y, w = rays[c, 0] * z[j], rays[c, 1] * z[j], rays[c, 2] * z[j]
+            X = T_ts[0, 0] * x + T_ts[0, 1] * y + T_ts[0, 2] * w + T_ts[0, 3]
+            Y = T_ts[1, 0] * x + T_ts[1, 1] * y + T_ts[1, 2] * w + T_ts[1, 3]
+            Z = T_ts[2, 0] * x + T_ts[2, 1] * y + T_ts[2, 2] * w + T_ts[2, 3]
+            u, vv, ok = project(cam, X, Y, Z)
+            front[j] = ok
+            uv[c, j, 0], uv[c, j, 1] = (u, vv) if ok else (bu, bv)
+        for j in range(v - 1):
+            d = math.hypot(uv[c, j + 1, 0] - uv[c, j, 0], uv[c, j + 1, 1] - uv[c, j, 1])
+            if front[j] and front[j + 1] and math.isfinite(d):
+                seg_ok[c, j] = True
+                length[c, j] = min(d, max_len)
+    return uv, seg_ok, length

@@ -53,7 +53,7 @@ from ..edgelet import (
 from ..geometry import se3
 from .edgelet_aperture import aperture_retry
 from .edgelet_cull_kernels import polarity_cull
-from .edgelet_epipolar_kernels import curve_hits
+from .edgelet_epipolar_kernels import curve_hits, curve_vertices
 
 if TYPE_CHECKING:
     from ..camera.model import CameraModel
@@ -257,13 +257,8 @@ def _epipolar_hits(
         return _Hits(np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(0), np.zeros((0, 2)))
     ray = np.concatenate([camera.unproject(src.a), np.ones((n, 1))], axis=1)
     T_ts = m.kf_T_cw[t] @ se3.inv(m.kf_T_cw[k])
-    Xt = (ray[:, None, :] * z[None, :, None]) @ T_ts[:3, :3].T + T_ts[:3, 3]
-    front = camera.valid(Xt.reshape(-1, 3)).reshape(n, v)
-    uv = camera.project(np.where(front[..., None], Xt, 1.0).reshape(-1, 3)).reshape(n, v, 2)
-    seg = np.diff(uv, axis=1)
-    length = np.linalg.norm(seg, axis=2)
-    seg_ok = front[:, 1:] & front[:, :-1] & np.isfinite(length)
-    length = np.where(seg_ok, np.minimum(length, np.hypot(*_image(m, t).shape)), 0.0)  # invalid: no piece
+    max_len = float(np.hypot(*_image(m, t).shape))  # no piece longer than the image's diagonal
+    uv, seg_ok, length = curve_vertices(camera.kernel_params(), T_ts, ray, z, max_len)
     maximal = maximal_edgels(sm_t, e)
     if e.epipolar_dilate_px:
         maximal = cv2.dilate(maximal, np.ones((2 * e.epipolar_dilate_px + 1,) * 2, np.uint8))

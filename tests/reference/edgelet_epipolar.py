@@ -67,3 +67,13 @@ def polarity_cull_ref(camera, T_k, T_t, a, b, z, g, tangent, min_deg):
         J_t = camera.project_jacobian(Xt)
     light_t = np.einsum("nij,nj->ni", J_t, (plane @ T_t[:3, :3].T) * side[:, None])
     return (gn > 0) & crossing & (np.sum(light_t * g, axis=1) > 0) & (Xt[:, 2] > 0)
+
+
+def curve_vertices_ref(camera, T_ts, ray, z, max_len):
+    n, v = len(ray), len(z)
+    Xt = (ray[:, None, :] * z[None, :, None]) @ T_ts[:3, :3].T + T_ts[:3, 3]
+    front = camera.valid(Xt.reshape(-1, 3)).reshape(n, v)
+    uv = camera.project(np.where(front[..., None], Xt, 1.0).reshape(-1, 3)).reshape(n, v, 2)
+    length = np.linalg.norm(np.diff(uv, axis=1), axis=2)
+    seg_ok = front[:, 1:] & front[:, :-1] & np.isfinite(length)
+    return uv, seg_ok, np.where(seg_ok, np.minimum(length, max_len), 0.0)
