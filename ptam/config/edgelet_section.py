@@ -54,6 +54,7 @@ class EdgeletConfig:
     epipolar_min_angle_deg: Annotated[float, Range("[0, 90)")]
     aperture_retry: bool
     epipolar_dilate_px: Annotated[int, Range("[0, inf)")]
+    image_cache_keyframes: Annotated[int, Range("[1, inf)")]
     hypothesis_merge_px: Annotated[float, Range("[0, inf)")]
     refine_iterations: Annotated[int, Range("[0, inf)")]
     # §5: tracking

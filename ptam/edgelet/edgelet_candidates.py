@@ -83,10 +83,14 @@ def gradient_at(smoothed_image: np.ndarray, xy: np.ndarray) -> np.ndarray:
 
 
 def extract_candidates(
-    image: np.ndarray, cfg: EdgeletConfig, existing_centres: np.ndarray | None = None
+    image: np.ndarray,
+    cfg: EdgeletConfig,
+    existing_centres: np.ndarray | None = None,
+    smoothed_image: np.ndarray | None = None,
 ) -> EdgeletCandidates:
-    """Candidate edgelets of a full-size keyframe ``image`` away from ``existing_centres`` (K, 2) (§4.3)."""
-    sm = smoothed(image, cfg)
+    """Candidate edgelets of a full-size keyframe ``image`` away from ``existing_centres`` (K, 2) (§4.3);
+    ``smoothed_image``: the image ``smoothed`` once already, if so."""
+    sm = smoothed(image, cfg) if smoothed_image is None else smoothed_image
     centre, direction, deviation = segment_edgels(canny_edges(sm, cfg), cfg)
     b = cfg.candidate_border_px
     H, W = image.shape

@@ -30,7 +30,6 @@ import time
 from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING, ClassVar
 
-import cv2
 import numpy as np
 
 from ..edgelet import (
@@ -41,12 +40,10 @@ from ..edgelet import (
     extract_candidates,
     gradient_at,
     line_rays,
-    maximal_edgels,
     measure_in_keyframe,
     perp,
     project_edgelets,
     refine_edgelets,
-    smoothed,
     triangulate_edgelets,
     verify_edgelets,
 )
@@ -54,6 +51,7 @@ from ..geometry import se3
 from .edgelet_aperture import aperture_retry
 from .edgelet_cull_kernels import polarity_cull
 from .edgelet_epipolar_kernels import curve_hits, curve_vertices
+from .edgelet_images import EdgeImages
 
 if TYPE_CHECKING:
     from ..camera.model import CameraModel
@@ -169,14 +167,17 @@ def check_keyframe(m: Map, k: int, t: int) -> int:
     return m.nearest_with_baseline(k, exclude=(t,))
 
 
-def integrate_keyframe(m: Map, camera: CameraModel, cfg: Config, k: int, t: int) -> EdgeletJob:
-    """The edgelet job for new keyframe k with target keyframe t (the mapper's closest keyframe)."""
+def integrate_keyframe(
+    m: Map, camera: CameraModel, cfg: Config, k: int, t: int, images: EdgeImages | None = None
+) -> EdgeletJob:
+    """The edgelet job for new keyframe k with target keyframe t (the mapper's closest keyframe); ``images``: the
+    mapper's keyframe images kept from earlier jobs, if any."""
     start = time.perf_counter()
-    job = _integrate(m, camera, cfg, k, t)
+    job = _integrate(m, camera, cfg, k, t, images if images is not None else EdgeImages(cfg.edgelets))
     return dataclasses.replace(job, ms=1e3 * (time.perf_counter() - start))
 
 
-def _integrate(m: Map, camera: CameraModel, cfg: Config, k: int, t: int) -> EdgeletJob:
+def _integrate(m: Map, camera: CameraModel, cfg: Config, k: int, t: int, images: EdgeImages) -> EdgeletJob:
     remeasured = measure_edgelets_in(m, camera, cfg, k, _unmeasured(m, k))
     c = check_keyframe(m, k, t)
     if c < 0:
@@ -184,18 +185,18 @@ def _integrate(m: Map, camera: CameraModel, cfg: Config, k: int, t: int) -> Edge
     e = cfg.edgelets
     measured = m.edgelets.view("meas_kf") == k
     existing = m.edgelets.view("meas_a")[measured]
-    cand = extract_candidates(_image(m, k), e, existing)
+    cand = extract_candidates(_image(m, k), e, existing, images.smoothed(m, k))
     if len(cand) == 0:
         return EdgeletJob(remeasured)
     src = measure_in_keyframe(_image(m, k), cand.centre, cand.direction, cand.normal, e)
     src = _take(src, np.flatnonzero(src.ok))
-    hypotheses, made, left = _triangulate_with(m, camera, cfg, (k, t, c), src)
+    hypotheses, made, left = _triangulate_with(m, camera, cfg, (k, t, c), src, images)
     added = len(made)
     t2, sel = aperture_retry(m, camera, e, k, t, src) if e.aperture_retry else (-1, made[:0])
     c2 = check_keyframe(m, k, t2) if t2 >= 0 else -1
     if c2 >= 0:
         sel = np.setdiff1d(sel, made)  # candidates that became edgelets with t despite the prediction
-        h2, made2, left2 = _triangulate_with(m, camera, cfg, (k, t2, c2), _take(src, sel))
+        h2, made2, left2 = _triangulate_with(m, camera, cfg, (k, t2, c2), _take(src, sel), images)
         hypotheses, added = hypotheses + h2, added + len(made2)
         left = tuple(np.union1d(a, sel[b]) for a, b in zip(left, left2))
     matched, kept, measured, triangulated, verified = (len(x) for x in left)
@@ -213,15 +214,15 @@ def _integrate(m: Map, camera: CameraModel, cfg: Config, k: int, t: int) -> Edge
 
 
 def _triangulate_with(
-    m: Map, camera: CameraModel, cfg: Config, kfs: tuple, src: LineMeasurements
+    m: Map, camera: CameraModel, cfg: Config, kfs: tuple, src: LineMeasurements, images: EdgeImages
 ) -> tuple[int, np.ndarray, tuple[np.ndarray, ...]]:
     """Steps 3-5 for source candidates ``src`` of keyframe k with target t and check keyframe c (``kfs``):
     returns the hypotheses measured in t, the candidates that became edgelets, and the candidates left after each
     step (``EdgeletJob``'s matched, kept, measured, triangulated, verified)."""
     k, t, c = kfs
     e = cfg.edgelets
-    sm_t = smoothed(_image(m, t), e)  # Canny's input and the polarity gradient's, for this target
-    hits = _epipolar_hits(m, camera, cfg, (k, t), src, sm_t)
+    sm_t = images.smoothed(m, t)  # Canny's input and the polarity gradient's, for this target
+    hits = _epipolar_hits(m, camera, cfg, (k, t), src, images.maximal(m, t))
     matched = hits.cand
     hits = _cull(m, camera, k, t, src, hits, sm_t, e)
     kept = hits.cand
@@ -244,10 +245,9 @@ def _depth_range(m: Map, cfg: Config, k: int) -> tuple[float, float]:
 
 
 def _epipolar_hits(
-    m: Map, camera: CameraModel, cfg: Config, kt: tuple[int, int], src: LineMeasurements, sm_t: np.ndarray
+    m: Map, camera: CameraModel, cfg: Config, kt: tuple[int, int], src: LineMeasurements, maximal: np.ndarray
 ) -> _Hits:
-    """Runs of maximal edgels along each candidate's epipolar curve in keyframe t (step 3); ``sm_t`` is t's
-    smoothed image."""
+    """Runs of ``maximal`` edgels (keyframe t's, dilated) along each candidate's epipolar curve in t (step 3)."""
     k, t = kt
     e = cfg.edgelets
     near, far = _depth_range(m, cfg, k)
@@ -259,9 +259,6 @@ def _epipolar_hits(
     T_ts = m.kf_T_cw[t] @ se3.inv(m.kf_T_cw[k])
     max_len = float(np.hypot(*_image(m, t).shape))  # no piece longer than the image's diagonal
     uv, seg_ok, length = curve_vertices(camera.kernel_params(), T_ts, ray, z, max_len)
-    maximal = maximal_edgels(sm_t, e)
-    if e.epipolar_dilate_px:
-        maximal = cv2.dilate(maximal, np.ones((2 * e.epipolar_dilate_px + 1,) * 2, np.uint8))
     cand, pts, inv_z, tangent = curve_hits(
         uv, seg_ok, length, 1.0 / z, float(e.epipolar_step_px), maximal, float(e.candidate_border_px)
     )

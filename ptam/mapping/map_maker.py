@@ -25,6 +25,7 @@ from ..map.snapshot import MapSnapshot
 from ..patch.finder import PatchFinder
 from .bad_points import TrackerFeedback
 from .bundle import Bundle, BundleResult
+from .edgelet_images import EdgeImages
 from .edgelet_map_ba import edgelet_ba_input, handle_edgelet_outliers, keep_edgelets
 from .edgelet_mapping import integrate_keyframe, rebuild_visibility_tables
 from .epipolar import epipolar_matches, unit_plane_corners
@@ -64,6 +65,7 @@ class MapMaker:
         self.bundle = Bundle(camera, cfg.bundle)
         self.finder = PatchFinder(cfg.patch)
         self.normals = NormalEstimator(camera, cfg)  # Gauglitz §5.4, the lowest-priority job
+        self.edge_images = EdgeImages(cfg.edgelets)  # kept between edgelet jobs (Agility §4.3)
         self.map = map_ if map_ is not None else Map()
         self.queue: deque[KeyframeRequest] = deque()
         self.snapshot: MapSnapshot | None = None
@@ -188,7 +190,8 @@ class MapMaker:
             else:
                 self.add_some_map_points(k, level)
         if self.cfg.edgelets.enabled and not r.panorama:  # Agility §4.3
-            job = integrate_keyframe(self.map, self.camera, self.cfg, k, self.map.nearest_with_baseline(k))
+            t = self.map.nearest_with_baseline(k)
+            job = integrate_keyframe(self.map, self.camera, self.cfg, k, t, self.edge_images)
             self.stats.setdefault("edgelet_jobs", []).append(job)
         self.recent_converged = self.full_converged = False
         self._integrated += 1
