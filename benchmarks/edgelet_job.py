@@ -1,0 +1,92 @@
+"""The edgelet job per keyframe, replayed (Agility §9.2: "performing edge extraction and adding edgelets can
+require up to 20ms per keyframe"), not part of CI. Each scene runs in sync mode; the map is copied just before
+each of the mapper's edgelet jobs (keyframe images shared, as the mapper's image cache sees them), and after the
+run the jobs are run again on those copies, in order, ``--repeats`` times. Per scene it prints the median over
+jobs of each job's smallest CPU time and of its time in the run.
+
+    python benchmarks/edgelet_job.py                            # desk_bricks, two_wall, desk_table, desk_corner
+    python benchmarks/edgelet_job.py --scenes bricks_blur --repeats 5
+
+In the run a job follows the tracker's frames, which leave the CPU's caches cold for it, and this machine's speed
+drifts from one run to the next: the replay's figure is the one to compare between commits, the run's (``ptam run``
+prints it as ``edgelet job ms median``) what a session sees.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import time
+
+import numpy as np
+
+from ptam.bench.accuracy import run_accuracy
+from ptam.config import load_config
+from ptam.mapping import map_maker
+from ptam.mapping.edgelet_images import EdgeImages
+from ptam.mapping.edgelet_mapping import integrate_keyframe
+from ptam.vocabulary import RunMode
+
+DEFAULT_SCENES = "desk_bricks,two_wall,desk_table,desk_corner"
+
+
+def _copy(m, images: dict) -> object:
+    """A deep copy of map ``m`` whose keyframe images are one array per keyframe across all copies."""
+    memo = {}
+    for k, kf in enumerate(m.keyframes):
+        image = kf.pyramid.levels[0]
+        memo[id(image)] = images.setdefault(k, image)
+    return copy.deepcopy(m, memo)
+
+
+def _recorded(jobs: list, images: dict) -> None:
+    """Wrap the mapper's edgelet job: the map copied before it, its CPU ms in the run."""
+
+    def recorded(m, camera, cfg, k, t, cache=None):
+        state = (_copy(m, images), camera, k, t)
+        c = time.thread_time()
+        out = integrate_keyframe(m, camera, cfg, k, t, cache)
+        jobs.append((state, 1e3 * (time.thread_time() - c)))
+        return out
+
+    map_maker.integrate_keyframe = recorded
+
+
+def _replayed(jobs: list, cfg, repeats: int) -> np.ndarray:
+    """Each job's smallest CPU ms over ``repeats`` in-order replays, one image cache per replay."""
+    times = np.empty((repeats, len(jobs)))
+    for r in range(repeats):
+        cache = EdgeImages(cfg.edgelets)
+        for j, ((m, camera, k, t), _) in enumerate(jobs):
+            m = copy.deepcopy(m, {id(kf.pyramid.levels[0]): kf.pyramid.levels[0] for kf in m.keyframes})
+            c = time.thread_time()
+            integrate_keyframe(m, camera, cfg, k, t, cache)
+            times[r, j] = 1e3 * (time.thread_time() - c)
+    return times.min(axis=0)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scenes", default=DEFAULT_SCENES, help="comma-separated scene names")
+    ap.add_argument("--repeats", type=int, default=3, help="replays of every job (the smallest time is kept)")
+    args = ap.parse_args()
+    cfg = load_config(None)
+    jobs: list = []
+    images: dict = {}
+    _recorded(jobs, images)
+    print("scene            jobs | replayed CPU ms median (min-max) | in the run CPU ms median")
+    for scene in args.scenes.split(","):
+        jobs.clear()
+        images.clear()
+        run_accuracy(cfg, scene, RunMode.SYNC)
+        replay = _replayed(jobs, cfg, max(args.repeats, 1))
+        live = np.array([ms for _, ms in jobs])
+        span = f"({replay.min():.1f}-{replay.max():.1f})"
+        print(
+            f"{scene:16s} {len(jobs):4d} | {np.median(replay):8.1f} {span:>15s}         | {np.median(live):8.1f}",
+            flush=True,
+        )
+
+
+if __name__ == "__main__":
+    main()
