@@ -99,6 +99,9 @@ class _Hits:
     tangent: np.ndarray
 
 
+_Found = tuple[int, np.ndarray, np.ndarray, np.ndarray]  # keyframe, edgelet ids, measured lines a, b (§4.2)
+
+
 def _keep(h: _Hits, mask: np.ndarray) -> _Hits:
     return _Hits(h.cand[mask], h.uv[mask], h.z[mask], h.tangent[mask])
 
@@ -119,27 +122,37 @@ def _inside(uv: np.ndarray, shape: tuple, border: float) -> np.ndarray:
 def measure_edgelets_in(m: Map, camera: CameraModel, cfg: Config, k: int, ids: np.ndarray) -> int:
     """Project edgelets ``ids`` into keyframe k, measure them (§4.2) and record the found ones with their
     visibility-table rows (§5.2); returns how many were found."""
-    if len(ids) == 0:
-        return 0
+    return _record(m, cfg, [_measured_in(m, camera, cfg, k, ids)])
+
+
+def _measured_in(m: Map, camera: CameraModel, cfg: Config, k: int, ids: np.ndarray) -> _Found:
+    """Edgelets ``ids`` projected into keyframe k and measured there (§4.2): the found ones and their lines."""
     e = cfg.edgelets
+    none = (k, ids[:0], np.zeros((0, 2)), np.zeros((0, 2)))
+    if len(ids) == 0:
+        return none
     ed = Edgelets(m.edgelets.view("centre")[ids], m.edgelets.view("direction")[ids], m.edgelets.view("normal")[ids])
     p = project_edgelets(camera, m.kf_T_cw[k], ed)
     img = _image(m, k)
     sel = np.flatnonzero(p.valid & _inside(p.centre, img.shape, e.candidate_border_px))
     if len(sel) == 0:
-        return 0
+        return none
     meas = measure_in_keyframe(img, p.centre[sel], p.direction[sel], p.normal[sel], e)
-    ok = sel[meas.ok]
-    _record(m, cfg, k, ids[ok], meas.a[meas.ok], meas.b[meas.ok])
-    return len(ok)
+    return k, ids[sel[meas.ok]], meas.a[meas.ok], meas.b[meas.ok]
 
 
-def _record(m: Map, cfg: Config, k: int, ids: np.ndarray, a: np.ndarray, b: np.ndarray) -> None:
-    if len(ids) == 0:
-        return
-    m.add_edgelet_measurements(k, ids, a, b)
-    t = build_visibility_table(_image(m, k), a, perp(b), cfg.edgelets)
-    m.add_edgelet_table_rows(k, ids, t.visible, t.r_search, t.t_min, t.max_blur)
+def _record(m: Map, cfg: Config, found: list[_Found]) -> int:
+    """Add the measurements (keyframe, edgelet ids, lines a, b) of several keyframes to the map at once, then each
+    keyframe's visibility-table rows (§5.2); returns how many were added."""
+    found = [f for f in found if len(f[1])]
+    if not found:
+        return 0
+    kf = np.concatenate([np.full(len(ids), k) for k, ids, _, _ in found])
+    m.add_edgelet_measurements(kf, *(np.concatenate([f[i] for f in found]) for i in (1, 2, 3)))
+    for k, ids, a, b in found:
+        t = build_visibility_table(_image(m, k), a, perp(b), cfg.edgelets)
+        m.add_edgelet_table_rows(k, ids, t.visible, t.r_search, t.t_min, t.max_blur)
+    return len(kf)
 
 
 def rebuild_visibility_tables(m: Map, cfg: Config, first_kf: int = 0) -> None:
@@ -327,12 +340,12 @@ def _add(
     ed = refine_edgelets(camera, m.kf_T_cw, ed, obs, cfg.edgelets, cfg.edgelets.refine_iterations)
     good = np.all(np.isfinite(ed.centre), axis=1)
     ids = m.add_edgelets(ed.centre[good], ed.direction[good], ed.normal[good], kfs[0])
-    for i, k in enumerate(kfs):
-        _record(m, cfg, k, ids, lines[i][0][good], lines[i][1][good])
+    found = [(k, ids, a[good], b[good]) for k, (a, b) in zip(kfs, lines)]
     seen = _in_view(m, camera, ids, cfg.edgelets.candidate_border_px)
     seen[list(kfs)] = False
     for k in np.flatnonzero(seen.any(axis=1)).tolist():  # only the keyframes that see some of them
-        measure_edgelets_in(m, camera, cfg, k, ids[seen[k]])
+        found.append(_measured_in(m, camera, cfg, k, ids[seen[k]]))
+    _record(m, cfg, found)
     return good
 
 
