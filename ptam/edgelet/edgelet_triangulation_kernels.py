@@ -22,15 +22,20 @@ from ..camera.camproj_kernels import project_jac
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _plane_normal(R, rays, i):
-    """The unit world normal of the plane through the camera centre and line i's rays (camera-to-world by Rᵀ)."""
+def line_normal(rays, i):
+    """The normal, in the camera frame and not normalised, of the plane through the camera centre and line i's
+    rays: the ray through its centre × the difference of those through centre ± ε·direction."""
     rx, ry, rz = rays[i, 0, 0], rays[i, 0, 1], rays[i, 0, 2]
     tx = rays[i, 1, 0] - rays[i, 2, 0]
     ty = rays[i, 1, 1] - rays[i, 2, 1]
     tz = rays[i, 1, 2] - rays[i, 2, 2]
-    cx = ry * tz - rz * ty
-    cy = rz * tx - rx * tz
-    cz = rx * ty - ry * tx
+    return ry * tz - rz * ty, rz * tx - rx * tz, rx * ty - ry * tx
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _plane_normal(R, rays, i):
+    """The unit world normal of the plane through the camera centre and line i's rays (camera-to-world by Rᵀ)."""
+    cx, cy, cz = line_normal(rays, i)
     mx = cx * R[0, 0] + cy * R[1, 0] + cz * R[2, 0]
     my = cx * R[0, 1] + cy * R[1, 1] + cz * R[2, 1]
     mz = cx * R[0, 2] + cy * R[1, 2] + cz * R[2, 2]

@@ -18,6 +18,7 @@ import numpy as np
 from numba import njit
 
 from ..camera.camproj_kernels import project_jac
+from ..edgelet.edgelet_triangulation_kernels import line_normal
 
 
 @njit(nogil=True, cache=True)
@@ -41,10 +42,7 @@ def polarity_cull(cam, T_k, T_t, rays, z, b, g, tangent, min_sin):
         if not gn > 0.0 or abs(gx * tangent[i, 0] + gy * tangent[i, 1]) / gn < min_sin:
             continue
         rx, ry, rz = rays[i, 0, 0], rays[i, 0, 1], rays[i, 0, 2]
-        ux = rays[i, 1, 0] - rays[i, 2, 0]
-        uy = rays[i, 1, 1] - rays[i, 2, 1]
-        uz = rays[i, 1, 2] - rays[i, 2, 2]
-        mx, my, mz = ry * uz - rz * uy, rz * ux - rx * uz, rx * uy - ry * ux  # the plane normal in k
+        mx, my, mz = line_normal(rays, i)  # the plane's normal in k
         project_jac(cam, rx * z[i], ry * z[i], rz * z[i], J)
         lu = J[0, 0] * mx + J[0, 1] * my + J[0, 2] * mz
         lv = J[1, 0] * mx + J[1, 1] * my + J[1, 2] * mz
