@@ -61,6 +61,15 @@ def test_linker_kernels_match_references(shapes, cfg):
         assert len(got[0]) == len(ref[0]) > 10
         assert np.allclose(got[0], ref[0]) and np.allclose(got[2], ref[2])
         assert np.allclose(np.abs(np.sum(got[1] * ref[1], axis=1)), 1.0)
+    # A view that is not contiguous, of a size that is no multiple of eight pixels (the edgel scan's words).
+    wide = np.zeros((edges.shape[0], edges.shape[1] + 5), np.uint8)
+    wide[:, : edges.shape[1]] = edges
+    wide[-1, -9:-5] = 255  # edgels among the last pixels, after the last whole word
+    crop = wide[1:, 3:-5]
+    assert not crop.flags.c_contiguous and crop.size % 8 > 4
+    pts, starts = link_edgels(crop)
+    pts_r, starts_r = link_edgels_ref(crop)
+    assert np.array_equal(pts, pts_r) and np.array_equal(starts, starts_r) and len(pts) == np.count_nonzero(crop)
 
 
 def test_chains_break_at_corners(cfg):
