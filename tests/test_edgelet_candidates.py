@@ -5,8 +5,16 @@ import numpy as np
 import pytest
 
 from ptam.edgelet.edgel_linker_kernels import link_edgels, split_chains
-from ptam.edgelet.edgelet_candidates import canny_edges, extract_candidates, maximal_edgels, segment_edgels, smoothed
+from ptam.edgelet.edgelet_candidates import (
+    canny_edges,
+    extract_candidates,
+    gradient_at,
+    maximal_edgels,
+    segment_edgels,
+    smoothed,
+)
 from ptam.errors import InputError
+from tests.reference.edge_gradient import sobel_at_ref
 from tests.reference.edgel_linker import link_edgels_ref, split_chains_ref
 from tests.reference.edgelet_scenes import polygon_edges, polygon_image
 
@@ -123,3 +131,25 @@ def test_maximal_edgels_include_the_linked_ones(shapes, cfg):
     assert np.all(maximal[edges > 0] > 0) and np.count_nonzero(maximal) > np.count_nonzero(edges)
     with pytest.raises(InputError):
         extract_candidates(img.astype(np.float32), cfg.edgelets)
+
+
+def test_gradient_kernel_matches_reference_and_opencv(shapes):
+    """The Sobel gradient at points: at pixel centres, halfway between pixels (rounded half to even) and outside
+    the image (moved in by a pixel), as the numpy reference and cv2.Sobel have it."""
+    img = shapes[0]
+    H, W = img.shape
+    rng = np.random.default_rng(1)
+    xy = np.concatenate(
+        [
+            rng.uniform([-3, -3], [W + 2, H + 2], (500, 2)),
+            rng.integers(0, [W, H], (200, 2)) + 0.5,
+            np.array([[0.0, 0.0], [W - 1.0, H - 1.0], [-50.0, H / 2], [W / 2, H + 50.0]]),
+        ]
+    )
+    got = gradient_at(img, xy)
+    assert np.array_equal(got, sobel_at_ref(img, xy))
+    ix = np.clip(np.round(xy[:, 0]).astype(int), 1, W - 2)
+    iy = np.clip(np.round(xy[:, 1]).astype(int), 1, H - 2)
+    gx, gy = cv2.Sobel(img, cv2.CV_64F, 1, 0, ksize=3), cv2.Sobel(img, cv2.CV_64F, 0, 1, ksize=3)
+    assert np.array_equal(got, np.stack([gx[iy, ix], gy[iy, ix]], axis=-1))
+    assert np.abs(got).max() > 100  # the shapes' edges are in it

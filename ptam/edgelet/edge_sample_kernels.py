@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 
@@ -117,3 +118,20 @@ def symmetric_peak(resp, k, h):
     if (d1 <= 0.0) == (d0 > 0.0):
         return step * d0 / (d0 - d1)
     return parabola_peak(resp[k - 1], resp[k], resp[k + 1])
+
+
+@njit(nogil=True, cache=True)
+def sobel_at(img, xy):
+    """The 3×3 Sobel gradient (N, 2) of ``img`` at the pixels nearest to ``xy`` (N, 2) (rounded half to even),
+    moved inside the image by at least one pixel: cv2.Sobel's values there."""
+    H, W = img.shape
+    out = np.empty((xy.shape[0], 2))
+    for i in range(xy.shape[0]):
+        x = min(max(int(np.rint(xy[i, 0])), 1), W - 2)
+        y = min(max(int(np.rint(xy[i, 1])), 1), H - 2)
+        a, b, c = float(img[y - 1, x - 1]), float(img[y - 1, x]), float(img[y - 1, x + 1])
+        d, f = float(img[y, x - 1]), float(img[y, x + 1])
+        g, h, k = float(img[y + 1, x - 1]), float(img[y + 1, x]), float(img[y + 1, x + 1])
+        out[i, 0] = c + 2.0 * f + k - a - 2.0 * d - g
+        out[i, 1] = g + 2.0 * h + k - a - 2.0 * b - c
+    return out

@@ -20,6 +20,7 @@ from scipy.spatial import cKDTree
 
 from ..config.edgelet_section import EdgeletConfig
 from ..errors import InputError
+from .edge_sample_kernels import sobel_at
 from .edgel_linker_kernels import link_edgels, split_chains
 from .edgelet import perp
 from .edgelet_measure import measure_in_keyframe
@@ -70,16 +71,8 @@ def segment_edgels(edges: np.ndarray, cfg: EdgeletConfig) -> tuple[np.ndarray, n
 
 def gradient_at(smoothed_image: np.ndarray, xy: np.ndarray) -> np.ndarray:
     """The 3×3 Sobel gradient (N, 2) of a ``smoothed`` image at the nearest pixels to ``xy`` (inside the image by
-    at least one pixel), computed there only (cv2.Sobel's values there)."""
-    ix = np.clip(np.round(xy[:, 0]).astype(int), 1, smoothed_image.shape[1] - 2)
-    iy = np.clip(np.round(xy[:, 1]).astype(int), 1, smoothed_image.shape[0] - 2)
-
-    def at(dy: int, dx: int) -> np.ndarray:
-        return smoothed_image[iy + dy, ix + dx].astype(np.float64)
-
-    gx = at(-1, 1) + 2.0 * at(0, 1) + at(1, 1) - at(-1, -1) - 2.0 * at(0, -1) - at(1, -1)
-    gy = at(1, -1) + 2.0 * at(1, 0) + at(1, 1) - at(-1, -1) - 2.0 * at(-1, 0) - at(-1, 1)
-    return np.stack([gx, gy], axis=-1)
+    at least one pixel), computed there only (cv2.Sobel's values there; ``edge_sample_kernels.sobel_at``)."""
+    return sobel_at(smoothed_image, np.ascontiguousarray(np.reshape(xy, (-1, 2)), dtype=np.float64))
 
 
 def extract_candidates(
