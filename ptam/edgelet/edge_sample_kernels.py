@@ -1,5 +1,6 @@
-"""1-D edge signals shared by the edgelet kernels (Agility §4.2, §5.1): bilinear look-ups, profiles along an
-edge normal, the sawtooth (ramp) taps and the sub-pixel peak of a response.
+"""Edge signals shared by the edgelet code (Agility §4.2, §4.3, §5.1): bilinear look-ups, profiles along an
+edge normal, the sawtooth (ramp) taps, the sub-pixel peak of a response, and the Sobel gradient at points (the
+polarity of §4.3's candidates and matches).
 
 Pixel centres are at integer coordinates; a sample needs its 2×2 neighbourhood inside the image. The sawtooth
 of period l is the zero-mean ramp k(x) = x on [−l/2, l/2] (Klein & Drummond BMVC'02, Agility §5.1); each tap j
