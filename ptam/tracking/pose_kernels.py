@@ -204,6 +204,7 @@ def pose_irls_edgelets(
     ew = np.zeros(m)
     err_sq = np.zeros(n + m)
     mu = np.zeros(6)
+    j = np.empty(6)  # one edgelet's Jacobian row (eq. 11)
     for it in range(n_iters):
         if it % relinearise_every == 0 or it == n_iters - 1:
             _linearise(cam, T, X, Xw, uv, J, valid)
@@ -239,14 +240,16 @@ def pose_irls_edgelets(
             wk = ew[k] * e_inv_sigma[k] * e_inv_sigma[k]
             if wk == 0.0:
                 continue
-            j = np.zeros(6)
             for a in range(6):
                 j[a] = e_normal[k, 0] * e_J[k, 0, a] + e_normal[k, 1] * e_J[k, 1, a]
             for a in range(6):
-                g[a] += wk * j[a] * er[k]
-                for b in range(6):
-                    H[a, b] += wk * j[a] * j[b]
+                wa = wk * j[a]
+                g[a] += wa * er[k]
+                for b in range(a, 6):
+                    H[a, b] += wa * j[b]
         for a in range(6):
+            for b in range(a):
+                H[a, b] = H[b, a]  # the edgelets added the upper triangle
             H[a, a] += prior
         mu, ok = cholesky_solve(H, g, 6, 0.0)
         if not ok:
