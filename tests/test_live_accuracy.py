@@ -34,6 +34,21 @@ def test_motion_model_predicts_the_whole_gap(cfg):
     assert np.allclose(model.predict(T), se3.exp(model.velocity) @ T, atol=1e-12)
 
 
+def test_exposure_blur_is_one_frames_motion_after_a_gap(cfg):
+    """Agility eq. 10's γ_C is the motion during one exposure: after missed frames the prior spans the gap (the
+    rotation estimator measures all of it) but the exposure does not, nor does the rapid-motion test (per frame)."""
+    model = MotionModel(cfg.tracker)
+    model.velocity = np.array([0.01, 0.0, 0.0, 0.0, 0.002, 0.0])
+    rotation = np.radians([0.0, 12.0, 0.0])  # 4° a frame over three frame periods
+    T = np.eye(4)
+    model.predict(T, rotation=rotation, frames=3.0)
+    gamma = model.exposure_motion(0.5)
+    assert np.allclose(gamma[3:], 0.5 * rotation / 3.0) and np.allclose(gamma[:3], 0.5 * model.velocity[:3])
+    assert np.degrees(np.linalg.norm(model.prior_rotation_per_frame())) == pytest.approx(4.0)
+    model.predict(T, frames=2.0)  # no estimate: the velocity, per frame whatever the gap
+    assert np.allclose(model.exposure_motion(1.0), model.velocity)
+
+
 @pytest.mark.slow
 @pytest.mark.alone
 def test_the_map_built_beside_the_tracker_poses_every_frame_it_saw(cfg):

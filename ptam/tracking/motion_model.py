@@ -25,12 +25,14 @@ class MotionModel:
         self.blend = float(tracker_cfg.motion_blend)
         self.velocity = np.zeros(6)
         self.scaled_speed = 0.0
-        self.prior = np.zeros(6)  # the inter-frame motion of the last prediction
+        self.prior = np.zeros(6)  # the motion of the last prediction, over its whole gap
+        self.gap = 1.0  # ... of this many frame periods
 
     def reset(self) -> None:
         self.velocity = np.zeros(6)
         self.scaled_speed = 0.0
         self.prior = np.zeros(6)
+        self.gap = 1.0
 
     def predict(
         self, T_cw: np.ndarray, rotation: np.ndarray | None = None, keep_axial: bool = False, frames: float = 1.0
@@ -45,13 +47,19 @@ class MotionModel:
                 v[2] = 0.0
             v[3:] = rotation
         self.prior = v
+        self.gap = max(float(frames), 1.0)
         return se3.exp(v) @ T_cw
+
+    def prior_rotation_per_frame(self) -> np.ndarray:
+        """The prior's rotation (3,) over one frame period: the exposure lasts a fraction of one period however
+        many frames were missed, and the rotation estimator measures the whole gap."""
+        return self.prior[3:] / self.gap
 
     def exposure_motion(self, fraction: float) -> np.ndarray:
         """γ_C of Agility eq. 10, the camera motion during an exposure of ``fraction`` of a frame period: the
         prior's rotation (the rotation estimator's when it runs) and the velocity's translation (the estimator
-        drops translation from the prior, but translation blurs as well)."""
-        return np.concatenate([self.velocity[:3], self.prior[3:]]) * fraction
+        drops translation from the prior, but translation blurs as well), both per frame period."""
+        return np.concatenate([self.velocity[:3], self.prior_rotation_per_frame()]) * fraction
 
     def update(self, T_start: np.ndarray, T_new: np.ndarray, mean_scene_depth: float, frames: float = 1.0) -> None:
         delta = se3.log(T_new @ se3.inv(T_start)) / frames  # per frame period
