@@ -217,10 +217,11 @@ class Tracker:
         clock.lap(SEARCH)
         found, xy = batch.found(), batch.xy()
         self._model = PoseModel.GENERAL
-        if found.any():
+        with_edges = self.edgelets.usable(self._edges)
+        if found.any() or with_edges:  # under heavy blur the edgelets alone may hold the pose (Agility §5)
             X, Xw = snapshot.features(batch.ids()[found])
             level = batch.level()[found]
-            if self.edgelets.usable(self._edges):
+            if with_edges:
                 T, w, self._edges = self.edgelets.final_pose(T, X, Xw, xy[found], level, not self._rapid, self._edges)
             elif self.cfg.model_selection.enabled:
                 T, w = self._select_model(snapshot, T, X, Xw, xy[found], level)
@@ -344,7 +345,9 @@ class Tracker:
 
     def _prior_is_rapid(self) -> bool:
         """The prior rotates the camera faster than ``reloc.rapid_rotation_deg`` a frame (Agility §8)."""
-        return bool(np.degrees(np.linalg.norm(self.motion.prior[3:])) > self.cfg.reloc.rapid_rotation_deg)
+        return bool(
+            np.degrees(np.linalg.norm(self.motion.prior_rotation_per_frame())) > self.cfg.reloc.rapid_rotation_deg
+        )
 
     def _update_scene_depth(self, snapshot, T, meas) -> tuple[float | None, float]:
         """Mean scene depth of the found points at the final pose (PTAM code, end of TrackMap); before any frame
