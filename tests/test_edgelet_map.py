@@ -7,6 +7,7 @@ import pytest
 from ptam.errors import PtamError
 from ptam.geometry import se3
 from ptam.map.map import Map
+from ptam.mapping import edgelet_mapping
 from ptam.mapping.edgelet_mapping import check_keyframe, integrate_keyframe
 from tests.support import config
 from tests.support.cameras import CAMERAS
@@ -151,3 +152,35 @@ def test_aperture_failures_are_retried_with_a_more_orthogonal_keyframe():
     assert np.all(dist < 0.003) and np.median(angle) < 1.0 and np.percentile(angle, 90) < 2.0
     gap = np.linalg.norm(s_retried.edgelet_centre[:, None] - s_retried.edgelet_centre[None], axis=2)
     assert np.min(gap + np.eye(len(gap))) > 0.005  # no candidate triangulated twice
+
+
+def test_the_retry_is_checked_in_a_third_keyframe_beside_both_targets():
+    """The mapper's target is the new keyframe's nearest (here keyframe 0, 10 cm along x). The candidates the
+    retry takes up are those whose plane through k's centre nearly holds the target's centre, so in the target
+    every depth hypothesis of theirs projects onto one image line and a check there would pass any depth: the
+    retry's check keyframe is a third one beside both targets, and the edgelets it adds are on the true edges."""
+    cam, cfg = CAMERAS["pinhole"], config()
+    positions = np.array([[0.10, 0.0, 0.01], [0.0, 0.15, -0.01], [-0.1, -0.08, 0.03], [0.0, 0.0, 0.0]])
+
+    def job(retry: bool):
+        c = cfg.replace(**{"edgelets.aperture_retry": retry})
+        m = keyframe_map(cam, c.image, positions)
+        checks = []
+        verify = edgelet_mapping.verify_edgelets
+
+        def recorded(camera, T_c, image, ed, e):
+            checks.append(next(i for i, T in enumerate(m.kf_T_cw) if np.array_equal(T, T_c)))
+            return verify(camera, T_c, image, ed, e)
+
+        edgelet_mapping.verify_edgelets = recorded
+        try:
+            out = integrate_keyframe(m, cam, c, 3, m.nearest_with_baseline(3))
+        finally:
+            edgelet_mapping.verify_edgelets = verify
+        return out, m.snapshot(), checks
+
+    (one, _, _), (retried, snap, checks) = job(False), job(True)
+    assert checks == [2, 2]  # the first pass's check (the nearest after the target), the retry's (after both): never 0
+    assert retried.added >= one.added + 15
+    dist, angle = edge_errors(snap.edgelet_centre, snap.edgelet_direction)
+    assert np.all(dist < 0.003) and np.percentile(angle, 90) < 2.0

@@ -1,8 +1,9 @@
 """Kernel: §4.3 step 4's culls of the matches on a candidate's epipolar curve (Agility §4.3).
 
-"Matches are culled by polarity and by requiring a gradient orthogonal to the epipolar line": at a match the
-target's image gradient g must cross the curve's tangent at no less than ``epipolar_min_angle_deg``, and point to
-the side the candidate's light side maps to. That side comes from the plane through the source camera and the
+"Often half of the matches can be rejected from light-to-dark polarity. Matches with gradients perpendicular to
+the epipolar line are further rejected": at a match the target's edge (perpendicular to its image gradient g)
+must cross the curve at no less than ``epipolar_min_angle_deg``, and g must point to the side the candidate's
+light side maps to. That side comes from the plane through the source camera and the
 candidate's line (its tangent at the centre, ``edgelet_triangulation``'s rays): the plane normal's image at the
 match's 3-D point, against the source line's dark-to-light normal, gives the sign of the normal on the light
 side; the same normal's image at that point in the target must then agree with g. One pass per match replaces

@@ -206,7 +206,10 @@ def _integrate(m: Map, camera: CameraModel, cfg: Config, k: int, t: int, images:
     hypotheses, made, left = _triangulate_with(m, camera, cfg, (k, t, c), src, images)
     added = len(made)
     t2, sel = aperture_retry(m, camera, e, k, t, src) if e.aperture_retry else (-1, made[:0])
-    c2 = check_keyframe(m, k, t2) if t2 >= 0 else -1
+    # The retry's check keyframe is a third one beside both targets: in t every hypothesis of a candidate the
+    # retry takes up projects onto one image line (its plane through k's centre nearly holds t's), so a check
+    # there would pass any depth; t is k's nearest keyframe, which the check would otherwise be.
+    c2 = m.nearest_with_baseline(k, exclude=(t, t2)) if t2 >= 0 else -1
     if c2 >= 0:
         sel = np.setdiff1d(sel, made)  # candidates that became edgelets with t despite the prediction
         h2, made2, left2 = _triangulate_with(m, camera, cfg, (k, t2, c2), _take(src, sel), images)
