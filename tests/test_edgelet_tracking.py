@@ -76,14 +76,30 @@ def test_edgelets_alone_fix_the_pose():
     assert len(w) == 0 and np.linalg.norm(err[:3]) < 4e-3 and np.degrees(np.linalg.norm(err[3:])) < 0.1
 
 
+CARD_KEYFRAMES = np.array([[0.15, 0.0, 0.01], [0.0, 0.15, -0.01], [-0.1, -0.08, 0.03], [0.0, 0.0, 0.0]])
+
+
+def _card_map_with_edgelets(cam, cfg):
+    m = keyframe_map(cam, cfg.image, CARD_KEYFRAMES)
+    integrate_keyframe(m, cam, cfg, 3, 0)
+    return m
+
+
 @pytest.fixture(scope="module")
 def card_map():
     cam = CAMERAS["pinhole"]
     cfg = load_config(overrides=["edgelets.enabled=true"])
-    positions = np.array([[0.15, 0.0, 0.01], [0.0, 0.15, -0.01], [-0.1, -0.08, 0.03], [0.0, 0.0, 0.0]])
-    m = keyframe_map(cam, cfg.image, positions)
-    integrate_keyframe(m, cam, cfg, 3, 0)
-    return cam, cfg, m.snapshot()
+    return cam, cfg, _card_map_with_edgelets(cam, cfg).snapshot()
+
+
+def _blurred_card_frame(cam):
+    """A frame 4 cm to the side of the new keyframe, moving 3 cm sideways during its exposure (~14 px of blur):
+    its image, true pose, a prediction 1 cm and 0.5 degrees off, and the camera's motion during the exposure."""
+    T_mid = look_at([0.04, 0.02, 0.0])
+    gamma = np.array([-0.03, 0.0, 0.0, 0.0, 0.0, 0.0])
+    image = render(cam, np.stack([se3.exp(gamma * s) @ T_mid for s in np.linspace(-0.5, 0.5, 15)]), seed=9)
+    T_pred = se3.exp(np.array([0.01, -0.004, 0.003, 0.004, -0.006, 0.003])) @ T_mid
+    return image, T_mid, T_pred, gamma
 
 
 def test_blurred_frame_search_and_pose(card_map):
@@ -91,11 +107,7 @@ def test_blurred_frame_search_and_pose(card_map):
     predicted 1 cm and 0.5 degrees off: the sawtooth search finds most edgelets on their edges, and the pose from
     edgelets alone lands on the truth."""
     cam, cfg, snap = card_map
-    T_mid = look_at([0.04, 0.02, 0.0])
-    gamma = np.array([-0.03, 0.0, 0.0, 0.0, 0.0, 0.0])  # the camera's motion during the exposure
-    sub = np.stack([se3.exp(gamma * s) @ T_mid for s in np.linspace(-0.5, 0.5, 15)])
-    image = render(cam, sub, seed=9)
-    T_pred = se3.exp(np.array([0.01, -0.004, 0.003, 0.004, -0.006, 0.003])) @ T_mid
+    image, T_mid, T_pred, gamma = _blurred_card_frame(cam)
     motion = MotionModel(cfg.tracker)
     motion.velocity = gamma / cfg.tracker.exposure_fraction
     tracker = EdgeletTracker(cam, cfg)
@@ -211,14 +223,9 @@ def test_edgelets_alone_update_the_pose_when_no_point_is_found(card_map):
     then runs on the edgelets alone. The card map's points are all out of view (behind the cameras); the frame of
     ``test_blurred_frame_search_and_pose``, predicted 1 cm and 0.5 degrees off, is tracked onto the truth."""
     cam, cfg, _ = card_map
-    positions = np.array([[0.15, 0.0, 0.01], [0.0, 0.15, -0.01], [-0.1, -0.08, 0.03], [0.0, 0.0, 0.0]])
-    m = keyframe_map(cam, cfg.image, positions)
-    integrate_keyframe(m, cam, cfg, 3, 0)
+    m = _card_map_with_edgelets(cam, cfg)
     m.add_points(np.array([[0.0, 0.0, -2.0]] * 3), np.array([[0.0, 0.0, 1.0]] * 3), [3] * 3, [0] * 3, [[320, 240]] * 3)
-    T_mid = look_at([0.04, 0.02, 0.0])
-    gamma = np.array([-0.03, 0.0, 0.0, 0.0, 0.0, 0.0])
-    image = render(cam, np.stack([se3.exp(gamma * s) @ T_mid for s in np.linspace(-0.5, 0.5, 15)]), seed=9)
-    T_pred = se3.exp(np.array([0.01, -0.004, 0.003, 0.004, -0.006, 0.003])) @ T_mid
+    image, T_mid, T_pred, gamma = _blurred_card_frame(cam)
     tracker = Tracker(cam, cfg)
     tracker.set_pose(T_pred)
     tracker.motion.velocity = gamma / cfg.tracker.exposure_fraction

@@ -174,10 +174,10 @@ def _unmeasured(m: Map, k: int) -> np.ndarray:
     return np.flatnonzero(~seen & ~m.edgelets.view("bad"))
 
 
-def check_keyframe(m: Map, k: int, t: int) -> int:
-    """The third keyframe of §4.3: the nearest to k by camera centre other than k and t, with a baseline (not a
-    panorama keyframe); -1 when there is none."""
-    return m.nearest_with_baseline(k, exclude=(t,))
+def check_keyframe(m: Map, k: int, *targets: int) -> int:
+    """The third keyframe of §4.3: the nearest to k by camera centre other than k and the ``targets``, with a
+    baseline (not a panorama keyframe); -1 when there is none."""
+    return m.nearest_with_baseline(k, exclude=targets)
 
 
 def integrate_keyframe(
@@ -209,7 +209,7 @@ def _integrate(m: Map, camera: CameraModel, cfg: Config, k: int, t: int, images:
     # The retry's check keyframe is a third one beside both targets: in t every hypothesis of a candidate the
     # retry takes up projects onto one image line (its plane through k's centre nearly holds t's), so a check
     # there would pass any depth; t is k's nearest keyframe, which the check would otherwise be.
-    c2 = m.nearest_with_baseline(k, exclude=(t, t2)) if t2 >= 0 else -1
+    c2 = check_keyframe(m, k, t, t2) if t2 >= 0 else -1
     if c2 >= 0:
         sel = np.setdiff1d(sel, made)  # candidates that became edgelets with t despite the prediction
         h2, made2, left2 = _triangulate_with(m, camera, cfg, (k, t2, c2), _take(src, sel), images)
