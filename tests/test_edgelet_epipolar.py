@@ -30,6 +30,16 @@ def test_a_curve_finds_each_edge_it_crosses_once_at_its_centre():
     assert np.allclose(iz, expect, atol=1e-12) and np.allclose(tangent, [1.0, 0.0])
 
 
+def test_a_piece_clipped_to_the_longest_length_keeps_a_unit_tangent():
+    """A piece longer than ``curve_vertices``' limit has its length clipped (sampling stops there), but the
+    tangent the cull compares gradients with is still the piece's unit direction."""
+    edgels = np.zeros((120, 200), np.uint8)
+    edgels[:, 49:52] = 255
+    uv = np.array([[[10.0, 10.0], [1010.0, 1010.0]]])
+    cand, pts, iz, tangent = curve_hits(uv, np.ones((1, 1), bool), np.array([[300.0]]), np.ones(2), 0.5, edgels, 3.0)
+    assert len(cand) == 1 and np.allclose(tangent, [[np.sqrt(0.5), np.sqrt(0.5)]], atol=1e-12)
+
+
 def test_curve_kernel_matches_reference_on_random_curves():
     """Random polylines over a random edgel image, with pieces marked invalid (no length: nothing sampled on
     them), pieces leaving the image and a border: the same matches as the numpy reference."""

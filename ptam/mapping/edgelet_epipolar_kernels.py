@@ -91,9 +91,12 @@ def curve_hits(uv, seg_ok, length, inv_z, step, edgels, border):
                 x, y, z = _sample(uv, length, inv_z, c, jm, mid * step, bm)
                 cand[out] = c
                 pts[out, 0], pts[out, 1], iz[out] = x, y, z
-                lm = max(length[c, jm], tiny)
-                tangent[out, 0] = (uv[c, jm + 1, 0] - uv[c, jm, 0]) / lm
-                tangent[out, 1] = (uv[c, jm + 1, 1] - uv[c, jm, 1]) / lm
+                # The piece's own length, not ``length`` (clipped to max_len on a piece longer than that).
+                tx = uv[c, jm + 1, 0] - uv[c, jm, 0]
+                ty = uv[c, jm + 1, 1] - uv[c, jm, 1]
+                lm = max(math.hypot(tx, ty), tiny)
+                tangent[out, 0] = tx / lm
+                tangent[out, 1] = ty / lm
                 out += 1
                 first = -1
     return cand[:out], pts[:out], iz[:out], tangent[:out]

@@ -47,7 +47,7 @@ def curve_hits_ref(uv, seg_ok, length, inv_z, step, edgels, border):
     hit &= edgels[ix[:, 1], ix[:, 0]] > 0
     mid = _run_middles(cand, hit)
     iz = inv_z[j] + frac * (inv_z[j + 1] - inv_z[j])
-    tangent = seg[cand, j] / np.maximum(length[cand, j], np.finfo(float).tiny)[:, None]
+    tangent = seg[cand, j] / np.maximum(np.linalg.norm(seg[cand, j], axis=1), np.finfo(float).tiny)[:, None]
     return cand[mid], pts[mid], iz[mid], tangent[mid]
 
 
