@@ -4,14 +4,16 @@ rendered keyframes of plain cards, whose sides are the only edges and are known 
 import numpy as np
 import pytest
 
+from ptam.edgelet import Edgelets
 from ptam.errors import PtamError
 from ptam.geometry import se3
 from ptam.map.map import Map
-from ptam.mapping import edgelet_mapping
-from ptam.mapping.edgelet_mapping import check_keyframe, integrate_keyframe
+from ptam.mapping import edgelet_check
+from ptam.mapping.edgelet_check import check_keyframes
+from ptam.mapping.edgelet_mapping import integrate_keyframe
 from tests.support import config
 from tests.support.cameras import CAMERAS
-from tests.support.edgelet_scene import edge_errors, keyframe_map, look_at
+from tests.support.edgelet_scene import edge_errors, keyframe_map, look_at, true_edges
 
 # Keyframe centres: three mapped keyframes (a target 15 cm along x, one 15 cm along y, one off both axes), then
 # the new keyframe at the origin, then one more that should re-measure the edgelets.
@@ -107,7 +109,7 @@ def test_new_keyframe_remeasures_map_edgelets(mapped):
     cam, cfg, m, _ = mapped
     n_before = m.edgelets.n_measurements
     k = m.add_keyframe(keyframe_map(cam, cfg.image, POSITIONS).keyframes[4], look_at(POSITIONS[4]))
-    assert check_keyframe(m, k, 3) >= 0
+    assert m.nearest_with_baseline(k, exclude=(3,)) >= 0
     job = integrate_keyframe(m, cam, cfg, k, 3)
     # Most edgelets are in view of keyframe 4 and are found there again.
     assert job.remeasured >= 0.6 * m.edgelets.n_total - job.added, job
@@ -158,7 +160,8 @@ def test_the_retry_is_checked_in_a_third_keyframe_beside_both_targets():
     """The mapper's target is the new keyframe's nearest (here keyframe 0, 10 cm along x). The candidates the
     retry takes up are those whose plane through k's centre nearly holds the target's centre, so in the target
     every depth hypothesis of theirs projects onto one image line and a check there would pass any depth: the
-    retry's check keyframe is a third one beside both targets, and the edgelets it adds are on the true edges."""
+    retry's hypotheses are checked beside both targets (here in keyframe 2, the retry's target being 1), and the
+    edgelets it adds are on the true edges."""
     cam, cfg = CAMERAS["pinhole"], config()
     positions = np.array([[0.10, 0.0, 0.01], [0.0, 0.15, -0.01], [-0.1, -0.08, 0.03], [0.0, 0.0, 0.0]])
 
@@ -166,21 +169,46 @@ def test_the_retry_is_checked_in_a_third_keyframe_beside_both_targets():
         c = cfg.replace(**{"edgelets.aperture_retry": retry})
         m = keyframe_map(cam, c.image, positions)
         checks = []
-        verify = edgelet_mapping.verify_edgelets
+        verify = edgelet_check.verify_edgelets
 
         def recorded(camera, T_c, image, ed, e):
             checks.append(next(i for i, T in enumerate(m.kf_T_cw) if np.array_equal(T, T_c)))
             return verify(camera, T_c, image, ed, e)
 
-        edgelet_mapping.verify_edgelets = recorded
+        edgelet_check.verify_edgelets = recorded
         try:
             out = integrate_keyframe(m, cam, c, 3, m.nearest_with_baseline(3))
         finally:
-            edgelet_mapping.verify_edgelets = verify
+            edgelet_check.verify_edgelets = verify
         return out, m.snapshot(), checks
 
     (one, _, _), (retried, snap, checks) = job(False), job(True)
-    assert checks == [2, 2]  # the first pass's check (the nearest after the target), the retry's (after both): never 0
+    assert 0 not in checks and checks[-1] == 2  # never the first target; the retry's beside both targets
     assert retried.added >= one.added + 15
     dist, angle = edge_errors(snap.edgelet_centre, snap.edgelet_direction)
     assert np.all(dist < 0.003) and np.percentile(angle, 90) < 2.0
+
+
+def test_each_hypothesis_is_checked_in_the_nearest_keyframe_that_can_tell_its_depth():
+    """§4.3's check, for hypotheses on the cards' sides seen from k at the origin: keyframe 0 (14 cm along x) is
+    the nearest, but the planes through a near-horizontal side and the two centres meet below the triangulation's
+    5° gate, so every depth on that side would pass there; those are checked in keyframe 1 (20 cm along y), the
+    others in keyframe 0. The target (keyframe 2) is never a check."""
+    cam, cfg = CAMERAS["pinhole"], config()
+    positions = np.array([[0.14, 0.0, 0.0], [0.0, 0.2, 0.0], [0.15, 0.15, 0.0], [0.0, 0.0, 0.0]])
+    m = keyframe_map(cam, cfg.image, positions)
+    P, Q = true_edges()
+    d = _unit(Q - P)
+    centre = 0.5 * (P + Q)
+    hyp = Edgelets(centre, d, _unit(np.cross(d, centre))).orthonormalised()
+    checks = check_keyframes(m, cam, cfg.edgelets, 3, (2,), hyp)
+
+    def plane_angle(j):  # degrees between the planes through each side and the centres of k and j
+        n_k, n_j = (_unit(np.cross(d, centre - m.camera_centres[i])) for i in (3, j))
+        return np.degrees(np.arcsin(np.linalg.norm(np.cross(n_k, n_j), axis=1)))
+
+    gate = cfg.edgelets.triangulate_min_plane_angle_deg
+    a0, a1 = plane_angle(0), plane_angle(1)
+    blind, free = (a0 < gate - 0.5) & (a1 > gate + 0.5), a0 > gate + 0.5
+    assert blind.sum() >= 4 and free.sum() >= 6
+    assert np.all(checks[blind] == 1) and np.all(checks[free] == 0)

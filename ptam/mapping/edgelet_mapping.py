@@ -12,8 +12,9 @@
    ``epipolar_step_px``; every run of maximal edgels (Canny without hysteresis) it crosses is a match;
 4. matches are culled by polarity (the light side of the source line's back-projected plane must project to the
    light side of the target gradient) and by the angle between the edge and the epipolar curve; the rest are
-   measured in t (§4.2), triangulated (``triangulate_edgelets``) and checked in a third keyframe
-   (``verify_edgelets``); a candidate becomes an edgelet only if exactly one hypothesis passes (hypotheses whose
+   measured in t (§4.2), triangulated (``triangulate_edgelets``) and checked in a third keyframe, for each
+   hypothesis the nearest that can tell its depth (``edgelet_check``); a candidate becomes an edgelet only if
+   exactly one hypothesis passes (hypotheses whose
    target measurements lie within ``hypothesis_merge_px`` are one);
 5. new edgelets are refined on their three measurements with the poses fixed (the edgelet blocks of §4.4) and
    measured in every other keyframe;
@@ -45,10 +46,10 @@ from ..edgelet import (
     project_edgelets,
     refine_edgelets,
     triangulate_edgelets,
-    verify_edgelets,
 )
 from ..geometry import se3
 from .edgelet_aperture import aperture_retry
+from .edgelet_check import check_keyframes, verify_in_check_keyframes
 from .edgelet_cull_kernels import polarity_cull
 from .edgelet_epipolar_kernels import curve_hits, curve_vertices
 from .edgelet_images import EdgeImages
@@ -174,12 +175,6 @@ def _unmeasured(m: Map, k: int) -> np.ndarray:
     return np.flatnonzero(~seen & ~m.edgelets.view("bad"))
 
 
-def check_keyframe(m: Map, k: int, *targets: int) -> int:
-    """The third keyframe of §4.3: the nearest to k by camera centre other than k and the ``targets``, with a
-    baseline (not a panorama keyframe); -1 when there is none."""
-    return m.nearest_with_baseline(k, exclude=targets)
-
-
 def integrate_keyframe(
     m: Map, camera: CameraModel, cfg: Config, k: int, t: int, images: EdgeImages | None = None
 ) -> EdgeletJob:
@@ -192,8 +187,7 @@ def integrate_keyframe(
 
 def _integrate(m: Map, camera: CameraModel, cfg: Config, k: int, t: int, images: EdgeImages) -> EdgeletJob:
     remeasured = measure_edgelets_in(m, camera, cfg, k, _unmeasured(m, k))
-    c = check_keyframe(m, k, t)
-    if c < 0:
+    if m.nearest_with_baseline(k, exclude=(t,)) < 0:  # no keyframe to check hypotheses in
         return EdgeletJob(remeasured)
     e = cfg.edgelets
     measured = m.edgelets.view("meas_kf") == k
@@ -203,16 +197,14 @@ def _integrate(m: Map, camera: CameraModel, cfg: Config, k: int, t: int, images:
         return EdgeletJob(remeasured)
     src = measure_in_keyframe(_image(m, k), cand.centre, cand.direction, cand.normal, e)
     src = _take(src, np.flatnonzero(src.ok))
-    hypotheses, made, left = _triangulate_with(m, camera, cfg, (k, t, c), src, images)
+    hypotheses, made, left = _triangulate_with(m, camera, cfg, (k, t), src, images)
     added = len(made)
     t2, sel = aperture_retry(m, camera, e, k, t, src) if e.aperture_retry else (-1, made[:0])
-    # The retry's check keyframe is a third one beside both targets: in t every hypothesis of a candidate the
-    # retry takes up projects onto one image line (its plane through k's centre nearly holds t's), so a check
-    # there would pass any depth; t is k's nearest keyframe, which the check would otherwise be.
-    c2 = check_keyframe(m, k, t, t2) if t2 >= 0 else -1
-    if c2 >= 0:
+    # The retry's hypotheses are checked beside both targets: in t every hypothesis of a candidate the retry
+    # takes up projects onto one image line (its plane through k's centre nearly holds t's centre).
+    if t2 >= 0 and m.nearest_with_baseline(k, exclude=(t, t2)) >= 0:
         sel = np.setdiff1d(sel, made)  # candidates that became edgelets with t despite the prediction
-        h2, made2, left2 = _triangulate_with(m, camera, cfg, (k, t2, c2), _take(src, sel), images)
+        h2, made2, left2 = _triangulate_with(m, camera, cfg, (k, t2, t), _take(src, sel), images)
         hypotheses, added = hypotheses + h2, added + len(made2)
         left = tuple(np.union1d(a, sel[b]) for a, b in zip(left, left2))
     matched, kept, measured, triangulated, verified = (len(x) for x in left)
@@ -232,10 +224,11 @@ def _integrate(m: Map, camera: CameraModel, cfg: Config, k: int, t: int, images:
 def _triangulate_with(
     m: Map, camera: CameraModel, cfg: Config, kfs: tuple, src: LineMeasurements, images: EdgeImages
 ) -> tuple[int, np.ndarray, tuple[np.ndarray, ...]]:
-    """Steps 3-5 for source candidates ``src`` of keyframe k with target t and check keyframe c (``kfs``):
-    returns the hypotheses measured in t, the candidates that became edgelets, and the candidates left after each
-    step (``EdgeletJob``'s matched, kept, measured, triangulated, verified)."""
-    k, t, c = kfs
+    """Steps 3-5 for source candidates ``src`` of keyframe k with target t (``kfs``: k, t, then any other keyframe
+    not to check in; ``edgelet_check``): returns the hypotheses measured in t, the candidates that became
+    edgelets, and the candidates left after each step (``EdgeletJob``'s matched, kept, measured, triangulated,
+    verified)."""
+    k, t = kfs[:2]
     e = cfg.edgelets
     sm_t = images.smoothed(m, t)  # Canny's input and the polarity gradient's, for this target
     hits = _epipolar_hits(m, camera, cfg, (k, t), src, images.maximal(m, t))
@@ -246,9 +239,11 @@ def _triangulate_with(
     hits, tgt = _keep(hits, tgt.ok), _take(tgt, tgt.ok)
     T = m.kf_T_cw
     tri = triangulate_edgelets(camera, T[k], _take(src, hits.cand), T[t], tgt, e)
-    ver = verify_edgelets(camera, T[c], _image(m, c), tri.edgelets, e)
+    checks = check_keyframes(m, camera, e, k, kfs[1:], tri.edgelets)
+    ver = verify_in_check_keyframes(m, camera, e, checks, tri.edgelets)
     one = _single_hypotheses(hits.cand, tgt.a, tri.ok & ver.ok, e.hypothesis_merge_px)
-    made = _add(m, camera, cfg, kfs, tri.edgelets.subset(one), (_take(src, hits.cand[one]), tgt, ver), one)
+    meas = (_take(src, hits.cand[one]), tgt, ver)
+    made = _add(m, camera, cfg, (k, t, checks[one]), tri.edgelets.subset(one), meas, one)
     stages = (matched, kept, hits.cand, hits.cand[tri.ok], hits.cand[tri.ok & ver.ok])
     return len(hits.cand), hits.cand[one][made], tuple(np.unique(x) for x in stages)
 
@@ -331,23 +326,28 @@ def _add(
     m: Map, camera: CameraModel, cfg: Config, kfs: tuple, ed: Edgelets, meas: tuple, one: np.ndarray
 ) -> np.ndarray:
     """Refine the new edgelets on their source, target and check measurements (poses fixed), add them with those
-    measurements, and measure them in every other keyframe (step 5); returns which of them were added."""
+    measurements, and measure them in every other keyframe (step 5); returns which of them were added. ``kfs``:
+    the source and target keyframes and each new edgelet's check keyframe."""
     n = len(one)
     if n == 0:
         return np.zeros(0, bool)
+    k, t, checks = kfs
     src, tgt, ver = meas
     lines = [(src.a, src.b), (tgt.a[one], tgt.b[one]), (ver.measurement.a[one], ver.measurement.b[one])]
-    kf = np.repeat(np.asarray(kfs), n)
-    local = np.tile(np.arange(n), len(kfs))
+    kf = np.concatenate([np.full(n, k), np.full(n, t), checks])
+    local = np.tile(np.arange(n), len(lines))
     obs = EdgeletObservations(kf, local, np.concatenate([a for a, _ in lines]), np.concatenate([b for _, b in lines]))
     ed = refine_edgelets(camera, m.kf_T_cw, ed, obs, cfg.edgelets, cfg.edgelets.refine_iterations)
     good = np.all(np.isfinite(ed.centre), axis=1)
-    ids = m.add_edgelets(ed.centre[good], ed.direction[good], ed.normal[good], kfs[0])
-    found = [(k, ids, a[good], b[good]) for k, (a, b) in zip(kfs, lines)]
+    ids = m.add_edgelets(ed.centre[good], ed.direction[good], ed.normal[good], k)
+    found = [(j, ids, a[good], b[good]) for j, (a, b) in zip((k, t), lines)]
+    checks, (a3, b3) = checks[good], (x[good] for x in lines[2])
+    found += [(c, ids[checks == c], a3[checks == c], b3[checks == c]) for c in np.unique(checks).tolist()]
     seen = _in_view(m, camera, ids, cfg.edgelets.candidate_border_px)
-    seen[list(kfs)] = False
-    for k in np.flatnonzero(seen.any(axis=1)).tolist():  # only the keyframes that see some of them
-        found.append(_measured_in(m, camera, cfg, k, ids[seen[k]]))
+    seen[[k, t]] = False
+    seen[checks, np.arange(len(ids))] = False
+    for j in np.flatnonzero(seen.any(axis=1)).tolist():  # only the keyframes that see some of them
+        found.append(_measured_in(m, camera, cfg, j, ids[seen[j]]))
     _record(m, cfg, found)
     return good
 
