@@ -58,34 +58,22 @@ def check_keyframes(
 def verify_in_check_keyframes(
     m: Map, camera: CameraModel, e: EdgeletConfig, checks: np.ndarray, ed: Edgelets
 ) -> Verification:
-    """``verify_edgelets`` for each hypothesis in its keyframe ``checks[i]`` (one measurement per keyframe)."""
-    parts, order = [], []
-    for c in np.unique(checks).tolist():
-        sel = np.flatnonzero(checks == c)
-        parts.append(verify_edgelets(camera, m.kf_T_cw[c], m.keyframes[c].pyramid.levels[0], ed.subset(sel), e))
-        order.append(sel)
-    if not parts:
-        s = int(e.samples)
-        none = LineMeasurements(
-            np.zeros((0, 2)),
-            np.zeros((0, 2)),
-            np.zeros(0),
-            np.zeros(0, np.int64),
-            np.zeros((0, s, 2)),
-            np.zeros((0, s), bool),
-            np.zeros(0, bool),
-        )
-        return Verification(np.zeros(0, bool), np.zeros(0), np.zeros(0), none)
-    back = np.argsort(np.concatenate(order))
+    """``verify_edgelets`` for each hypothesis in its keyframe ``checks[i]`` (``check_keyframes``' choice, none
+    -1: the edgelet job runs only where the map has such a keyframe), one measurement call per keyframe."""
+    keyframes = np.unique(checks).tolist() or [0]  # no hypotheses: one empty call gives the empty arrays
+    groups = [np.flatnonzero(checks == c) for c in keyframes]
+    parts = [
+        verify_edgelets(camera, m.kf_T_cw[c], m.keyframes[c].pyramid.levels[0], ed.subset(sel), e)
+        for c, sel in zip(keyframes, groups)
+    ]
+    back = np.argsort(np.concatenate(groups))
+
+    def joined(rows):
+        return np.concatenate(list(rows))[back]
+
     meas = LineMeasurements(
-        *(
-            np.concatenate([getattr(p.measurement, f) for p in parts])[back]
-            for f in LineMeasurements.__dataclass_fields__
-        )
+        *(joined(getattr(p.measurement, f) for p in parts) for f in LineMeasurements.__dataclass_fields__)
     )
     return Verification(
-        np.concatenate([p.ok for p in parts])[back],
-        np.concatenate([p.distance_px for p in parts])[back],
-        np.concatenate([p.angle_deg for p in parts])[back],
-        meas,
+        joined(p.ok for p in parts), joined(p.distance_px for p in parts), joined(p.angle_deg for p in parts), meas
     )
