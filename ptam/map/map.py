@@ -156,15 +156,20 @@ class Map:
     def camera_centres(self) -> np.ndarray:
         return camera_centres(self.kf_T_cw)
 
-    def nearest_with_baseline(self, k: int, exclude=()) -> int:
-        """The keyframe nearest to keyframe k by camera centre that can have a baseline to it: not k, not in
-        ``exclude``, not a panorama keyframe (Gauglitz et al. §4.3); -1 when there is none."""
+    def keyframes_with_baseline(self, k: int, exclude=()) -> np.ndarray:
+        """The keyframes that can have a baseline to keyframe k, nearest by camera centre first: not k, not in
+        ``exclude``, not panorama keyframes (Gauglitz et al. §4.3)."""
         c = self.camera_centres
         d = np.linalg.norm(c - c[k], axis=1)
         d[[k, *exclude]] = np.inf
         d[KeyFrame.panorama_flags(self.keyframes)] = np.inf
-        j = int(np.argmin(d))
-        return j if np.isfinite(d[j]) else -1
+        order = np.argsort(d, kind="stable")
+        return order[np.isfinite(d[order])]
+
+    def nearest_with_baseline(self, k: int, exclude=()) -> int:
+        """The first of ``keyframes_with_baseline``; -1 when there is none."""
+        js = self.keyframes_with_baseline(k, exclude)
+        return int(js[0]) if len(js) else -1
 
     def set_poses(self, indices, T_cw) -> None:
         idx = self._check_indices("keyframe", indices, self.n_keyframes)

@@ -14,7 +14,6 @@ import numpy as np
 
 from ..edgelet import LineMeasurements
 from ..geometry import se3
-from ..map.keyframe import KeyFrame
 from .edgelet_aperture_kernels import aperture_free, aperture_problem
 
 if TYPE_CHECKING:
@@ -43,12 +42,9 @@ def aperture_retry(
     C = se3.transform(T[k], m.camera_centres)  # every keyframe's centre in k's frame
     min_sin = float(np.sin(np.deg2rad(e.triangulate_min_plane_angle_deg)))
     failed = np.flatnonzero(aperture_problem(Xk, D, C[t : t + 1], min_sin)[0])
-    others = np.ones(m.n_keyframes, bool)
-    others[[k, t]] = False
-    others &= ~KeyFrame.panorama_flags(m.keyframes)
-    if len(failed) == 0 or not others.any():
+    js = m.keyframes_with_baseline(k, (t,))  # nearest first
+    if len(failed) == 0 or len(js) == 0:
         return -1, failed[:0]
-    js = np.flatnonzero(others)
     T_jk = T[js] @ se3.inv(T[k])
     free = aperture_free(
         camera.kernel_params(),
@@ -62,7 +58,7 @@ def aperture_retry(
         camera.height,
     )
     count = free.sum(axis=1)
-    best = np.lexsort((np.linalg.norm(C[js], axis=1), -count))[0]  # the most freed, then the nearest
+    best = int(np.argmax(count))  # the most freed, the nearest of equals
     if count[best] == 0:
         return -1, failed[:0]
     return int(js[best]), failed[free[best]]

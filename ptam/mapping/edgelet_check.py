@@ -19,7 +19,6 @@ import numpy as np
 from ..edgelet import Edgelets, LineMeasurements, verify_edgelets
 from ..edgelet.edgelet_triangulation import Verification
 from ..geometry import se3
-from ..map.keyframe import KeyFrame
 from .edgelet_aperture_kernels import aperture_free
 
 if TYPE_CHECKING:
@@ -33,14 +32,11 @@ def check_keyframes(
 ) -> np.ndarray:
     """Each hypothesis' check keyframe (``ed``: the hypotheses, world frame), as above; -1 where the map has no
     keyframe but k, the ``targets`` and panorama keyframes."""
-    others = ~KeyFrame.panorama_flags(m.keyframes)
-    others[[k, *targets]] = False
-    if len(ed) == 0 or not others.any():
+    js = m.keyframes_with_baseline(k, targets)
+    if len(ed) == 0 or len(js) == 0:
         return np.full(len(ed), -1)
     T = m.kf_T_cw
     C = se3.transform(T[k], m.camera_centres)  # every keyframe's centre in k's frame
-    js = np.flatnonzero(others)
-    js = js[np.argsort(np.linalg.norm(C[js], axis=1), kind="stable")]  # nearest first
     free = aperture_free(
         camera.kernel_params(),
         T[js] @ se3.inv(T[k]),
