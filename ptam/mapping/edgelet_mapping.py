@@ -341,7 +341,8 @@ def _add(
     good = np.all(np.isfinite(ed.centre), axis=1)
     ids = m.add_edgelets(ed.centre[good], ed.direction[good], ed.normal[good], k)
     found = [(j, ids, a[good], b[good]) for j, (a, b) in zip((k, t), lines)]
-    checks, (a3, b3) = checks[good], (x[good] for x in lines[2])
+    checks = checks[good]
+    a3, b3 = lines[2][0][good], lines[2][1][good]
     found += [(c, ids[checks == c], a3[checks == c], b3[checks == c]) for c in np.unique(checks).tolist()]
     seen = _in_view(m, camera, ids, cfg.edgelets.candidate_border_px)
     seen[[k, t]] = False
