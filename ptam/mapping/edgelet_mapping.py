@@ -197,14 +197,14 @@ def _integrate(m: Map, camera: CameraModel, cfg: Config, k: int, t: int, images:
         return EdgeletJob(remeasured)
     src = measure_in_keyframe(_image(m, k), cand.centre, cand.direction, cand.normal, e)
     src = _take(src, np.flatnonzero(src.ok))
-    hypotheses, made, left = _triangulate_with(m, camera, cfg, (k, t), src, images)
+    hypotheses, made, left = _triangulate_with(m, camera, cfg, (k, t), src, images, ())
     added = len(made)
     t2, sel = aperture_retry(m, camera, e, k, t, src) if e.aperture_retry else (-1, made[:0])
     # The retry's hypotheses are checked beside both targets: in t every hypothesis of a candidate the retry
     # takes up projects onto one image line (its plane through k's centre nearly holds t's centre).
     if t2 >= 0 and m.nearest_with_baseline(k, exclude=(t, t2)) >= 0:
         sel = np.setdiff1d(sel, made)  # candidates that became edgelets with t despite the prediction
-        h2, made2, left2 = _triangulate_with(m, camera, cfg, (k, t2, t), _take(src, sel), images)
+        h2, made2, left2 = _triangulate_with(m, camera, cfg, (k, t2), _take(src, sel), images, (t,))
         hypotheses, added = hypotheses + h2, added + len(made2)
         left = tuple(np.union1d(a, sel[b]) for a, b in zip(left, left2))
     matched, kept, measured, triangulated, verified = (len(x) for x in left)
@@ -222,13 +222,18 @@ def _integrate(m: Map, camera: CameraModel, cfg: Config, k: int, t: int, images:
 
 
 def _triangulate_with(
-    m: Map, camera: CameraModel, cfg: Config, kfs: tuple, src: LineMeasurements, images: EdgeImages
+    m: Map,
+    camera: CameraModel,
+    cfg: Config,
+    kt: tuple[int, int],
+    src: LineMeasurements,
+    images: EdgeImages,
+    not_checks: tuple[int, ...],
 ) -> tuple[int, np.ndarray, tuple[np.ndarray, ...]]:
-    """Steps 3-5 for source candidates ``src`` of keyframe k with target t (``kfs``: k, t, then any other keyframe
-    not to check in; ``edgelet_check``): returns the hypotheses measured in t, the candidates that became
-    edgelets, and the candidates left after each step (``EdgeletJob``'s matched, kept, measured, triangulated,
-    verified)."""
-    k, t = kfs[:2]
+    """Steps 3-5 for source candidates ``src`` of keyframe k with target t (``kt``), checked in neither t nor
+    ``not_checks`` (``edgelet_check``): returns the hypotheses measured in t, the candidates that became edgelets,
+    and the candidates left after each step (``EdgeletJob``'s matched, kept, measured, triangulated, verified)."""
+    k, t = kt
     e = cfg.edgelets
     sm_t = images.smoothed(m, t)  # Canny's input and the polarity gradient's, for this target
     hits = _epipolar_hits(m, camera, cfg, (k, t), src, images.maximal(m, t))
@@ -239,7 +244,7 @@ def _triangulate_with(
     hits, tgt = _keep(hits, tgt.ok), _take(tgt, tgt.ok)
     T = m.kf_T_cw
     tri = triangulate_edgelets(camera, T[k], _take(src, hits.cand), T[t], tgt, e)
-    checks = check_keyframes(m, camera, e, k, kfs[1:], tri.edgelets)
+    checks = check_keyframes(m, camera, e, k, (t, *not_checks), tri.edgelets)
     ver = verify_in_check_keyframes(m, camera, e, checks, tri.edgelets)
     one = _single_hypotheses(hits.cand, tgt.a, tri.ok & ver.ok, e.hypothesis_merge_px)
     meas = (_take(src, hits.cand[one]), tgt, ver)
