@@ -13,6 +13,7 @@ from ptam.mapping import bundle_edgelet_kernels as EK
 from ptam.mapping import bundle_kernels as K
 from ptam.mapping import bundle_schur_kernels as SK
 from ptam.mapping.bundle import Bundle
+from ptam.mapping.bundle_edgelets import lens_linearised
 from ptam.mapping.bundle_inputs import EdgeletBundleInput
 from ptam.mapping.bundle_structure import build_structure
 from tests.reference import bundle as R
@@ -123,6 +124,11 @@ def test_without_edgelets_the_result_is_the_points_only_one(problem):
     assert np.array_equal(b.edgelets.centre, eb.init.centre) and len(b.edgelet_outliers) == 0
 
 
+def _image_plane(n):
+    """``to_px`` for lines measured in the image itself: the identity."""
+    return np.repeat(np.eye(2)[None], n, axis=0)
+
+
 def _linearised(problem):
     """The inputs of the edgelet kernels at the perturbed start, 3 of 10 keyframes fixed, 5 edgelets not adjusted,
     10 % of the measurements not in use; the per-measurement terms ``ba_edgelet_rows`` computes there (err, jp, je,
@@ -145,7 +151,8 @@ def _linearised(problem):
     err, e2, bad = np.empty((n, 2)), np.empty(n), np.empty(n, bool)
     jp, je, along = np.full((n, 2, 6), 7.0), np.full((n, 2, 4), 7.0), np.empty((n, 2))
     meas = (es.mcam, es.medg, obs.a, m_hat)
-    EK.ba_edgelet_place(cam.kernel_params(), P, ed.frames(), es.mcam, es.medg, CFG.edgelets.ba_sample_offset_px, along)
+    offset = CFG.edgelets.ba_sample_offset_px
+    EK.ba_edgelet_place(cam.kernel_params(), P, ed.frames(), es.mcam, es.medg, offset, _image_plane(n), along)
     EK.ba_edgelet_rows(cam.kernel_params(), P, ed.frames(), meas, use, along, err, jp, je, e2, bad)
     ref = edgelet_ba_terms_ref(cam, P, ed.frames(), es.mcam, es.medg, obs.a, m_hat, along_ref)
     c2 = float(np.median(e2[use])) * 9.0
@@ -164,6 +171,35 @@ def test_rows_kernel_matches_reference(problem):
     ok = use & r_valid
     assert close(err[ok], r_err[ok]) and not err[~use].any() and close(e2, np.where(ok, np.sum(r_err**2, 1), 0.0))
     assert close(jp[ok], r_Jp[ok]) and close(je[ok], r_Je[ok])
+
+
+def test_lines_moved_to_the_normalised_plane_keep_their_pixel_distances(problem):
+    """``lens_linearised``: at the true poses and edgelets (FOV lens, ω = 0.9, measurements out to the image
+    corners) the plane's sample points, residuals and Jacobian rows are the image's to first order in the sample
+    points' distance from the measured point (5 px from the projected centres, which lie 1.5 px from it, 3.2 px
+    at most): distances within 0.05 px (the lines' noise: 0.5 px), rows within 2 %."""
+    prob, eb = problem
+    cam, P, F, off = prob.camera, prob.poses_true, eb.truth.frames(), CFG.edgelets.ba_sample_offset_px
+    obs, n = eb.obs, len(eb.obs.kf)
+    m_hat = perp(obs.b / np.linalg.norm(obs.b, axis=1, keepdims=True))
+
+    def terms(kernel_cam, a, normal, to_px):
+        along, err, e2, bad = np.empty((n, 2)), np.empty((n, 2)), np.empty(n), np.empty(n, bool)
+        jp, je = np.zeros((n, 2, 6)), np.zeros((n, 2, 4))
+        EK.ba_edgelet_place(kernel_cam, P, F, obs.kf, obs.edgelet, off, to_px, along)
+        meas = (obs.kf, obs.edgelet, a, normal)
+        EK.ba_edgelet_rows(kernel_cam, P, F, meas, np.ones(n, bool), along, err, jp, je, e2, bad)
+        return along, err, jp, je, bad
+
+    image = terms(cam.kernel_params(), obs.a, m_hat, _image_plane(n))
+    plane = terms(*lens_linearised(cam, obs.a, m_hat))
+    ok = ~image[4] & ~eb.gross
+    assert np.array_equal(plane[4], image[4]) and ok.sum() > 0.95 * n
+    assert np.abs(plane[0][ok] / image[0][ok] - 1.0).max() < 0.02
+    assert np.abs(plane[1] - image[1])[ok].max() < 0.05
+    for p_rows, i_rows in zip(plane[2:4], image[2:4]):
+        rel = np.linalg.norm(p_rows[ok] - i_rows[ok], axis=2) / np.linalg.norm(i_rows[ok], axis=2)
+        assert rel.max() < 0.02
 
 
 def _image_offsets(camera, poses, ed, mcam, medg, z):
@@ -186,14 +222,14 @@ def test_residuals_kernel_matches_reference(problem):
     n = len(use)
     err, e2, bad, placed = np.empty((n, 2)), np.empty(n), np.empty(n, bool), np.empty((n, 2))
     offset = CFG.edgelets.ba_sample_offset_px
-    EK.ba_edgelet_residuals(cam, P, F, meas, along, offset, use, err, e2, bad, placed)
+    EK.ba_edgelet_residuals(cam, P, F, meas, along, offset, _image_plane(n), use, err, e2, bad, placed)
     assert np.array_equal(bad, use & ~r_valid)
     ok = use & r_valid
     assert close(err[ok], r_err[ok]) and not err[~use].any() and close(e2, np.where(ok, np.sum(r_err**2, 1), 0.0))
     assert np.array_equal(placed[~ok], along[~ok])
     es = st.edgelets
     P_true = prob.poses_true[st.cams]
-    EK.ba_edgelet_residuals(cam, P_true, F, meas, along, offset, use, err, e2, bad, placed)
+    EK.ba_edgelet_residuals(cam, P_true, F, meas, along, offset, _image_plane(n), use, err, e2, bad, placed)
     ed = eb.init.subset(es.ids)
     moved = use & ~bad
     dev = np.abs(_image_offsets(prob.camera, P_true, ed, es.mcam, es.medg, placed[:, 1]).mean(axis=1) - offset)[moved]

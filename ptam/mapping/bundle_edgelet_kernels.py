@@ -24,7 +24,10 @@ the Tukey biweight and accumulated:
 * ``ba_edgelet_seen_update``: the edgelet updates' share of the convergence test, the motion of their sample points
   that the measurements can see (``bundle_edgelets.EdgeletLM.squared_update``).
 
-Per Agility §8 every distance has unit (one-pixel) variance. The numpy references are in
+``cam`` is the camera the measured lines are in: the image itself (``to_px`` the identity), or, as
+``bundle_edgelets`` runs them, the normalised image plane of a unit pinhole, where a straight edge is straight and
+its sample points project with two divisions instead of through the lens (``to_px`` the lens's pixel Jacobian at
+each measurement). Per Agility §8 every distance has unit (one-pixel) variance. The numpy references are in
 ``tests/reference/bundle_edgelets.py``.
 """
 
@@ -42,7 +45,15 @@ from .bundle_schur_kernels import eliminate
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _along(cam, T, E, offset_px, J):
+def _pixels(to_px, du, dv):
+    """The length in pixels of the step (du, dv) in the measurement's plane, ``to_px`` its 2×2 Jacobian there."""
+    pu = to_px[0, 0] * du + to_px[0, 1] * dv
+    pv = to_px[1, 0] * du + to_px[1, 1] * dv
+    return math.sqrt(pu * pu + pv * pv)
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _along(cam, T, E, offset_px, to_px, J):
     """Eq. 6: the E-frame z of the sample points ±``offset_px`` px from the projected centre (∓z, z), z =
     ``offset_px``/|d|, |d| the image length of a unit step along the edgelet (eq. 5) at its centre; 0 when the
     centre is behind the camera."""
@@ -52,16 +63,17 @@ def _along(cam, T, E, offset_px, J):
         return 0.0
     du = J[0, 0] * dx + J[0, 1] * dy + J[0, 2] * dz
     dv = J[1, 0] * dx + J[1, 1] * dy + J[1, 2] * dz
-    return offset_px / max(math.sqrt(du * du + dv * dv), 1e-12)
+    return offset_px / max(_pixels(to_px, du, dv), 1e-12)
 
 
 @njit(nogil=True, cache=True)
-def ba_edgelet_place(cam, poses, frames, mcam, medg, offset_px, along):
+def ba_edgelet_place(cam, poses, frames, mcam, medg, offset_px, to_px, along):
     """Eq. 6 at the start of an adjustment: each measurement's sample points ±``offset_px`` px from its projected
-    centre, from the image length |d| of a unit step along the edgelet there (``along`` (M, 2))."""
+    centre, from the image length |d| of a unit step along the edgelet there (``along`` (M, 2)); ``to_px`` (M, 2, 2)
+    the pixels per unit of ``cam``'s image at each measurement."""
     J = np.empty((2, 3))
     for k in range(mcam.shape[0]):
-        z = _along(cam, poses[mcam[k]], frames[medg[k]], offset_px, J)
+        z = _along(cam, poses[mcam[k]], frames[medg[k]], offset_px, to_px[k], J)
         along[k, 0] = -z
         along[k, 1] = z
 
@@ -87,7 +99,7 @@ def ba_edgelet_rows(cam, poses, frames, meas, use, along, err, jp, je, e2, bad):
 
 
 @njit(nogil=True, cache=True)
-def ba_edgelet_residuals(cam, poses, frames, meas, along, offset_px, use, err, e2, bad, placed):
+def ba_edgelet_residuals(cam, poses, frames, meas, along, offset_px, to_px, use, err, e2, bad, placed):
     """Eq. 7 for the measurements in ``use``: ε_n = m̂·(s_n − a) (M, 2) px, e2 = ε₁² + ε₂², bad = a sample point
     behind the camera (as ``edgelet_ba_terms``, without the Jacobians); and ``placed`` (M, 2), the sample points
     of eq. 6 at this state for the next linearisation: |d| is the chord |s₂ − s₁| / (z₂ − z₁) of the two
@@ -116,10 +128,9 @@ def ba_edgelet_residuals(cam, poses, frames, meas, along, offset_px, use, err, e
         err[k, 1] = n0 * (u1 - a0) + n1 * (v1 - a1)
         e2[k] = err[k, 0] * err[k, 0] + err[k, 1] * err[k, 1]
         if z1 > z0:
-            chord = math.sqrt((u1 - u0) * (u1 - u0) + (v1 - v0) * (v1 - v0))
-            z = offset_px / max(chord / (z1 - z0), 1e-12)
+            z = offset_px / max(_pixels(to_px[k], u1 - u0, v1 - v0) / (z1 - z0), 1e-12)
         else:  # never placed: the centre was outside the lens's range (``_along``)
-            z = _along(cam, T, E, offset_px, J)
+            z = _along(cam, T, E, offset_px, to_px[k], J)
         placed[k, 0] = -z
         placed[k, 1] = z
 

@@ -12,6 +12,14 @@ biweight serves both, with its cut-off from the median of all squared errors —
 edgelet measurement beyond the cut-off (or with a sample point behind the camera) leaves the problem and is
 reported as an outlier, as a point measurement is (PTAM §6.4).
 
+The measurement plane. A straight edge projects to a curve in a distorted image, and eq. 7's projections of the
+sample points through the lens took most of an edgelet's cost in an iteration (an arctangent each on a FOV lens).
+Each measured line is moved once, at the start, to the normalised image plane (``lens_linearised``): the point a
+unprojected, the normal m̂ pulled back through L, the lens's pixel Jacobian at a. A plane point x is then
+g·(x − a) px from the line, g = m̂ᵀL, to first order in |x − a| (the sample points are about 5 px from a, and
+there a straight edge's plane image is straight where its lens image bends), and a sample point projects with two
+divisions; its pixel distances from the centre (eq. 6) are L's.
+
 Sample points. Eq. 6 places them at ∓5/|d| on the edgelet's axis, |d| its image length per unit length. They are
 placed again at every linearisation, from the current state, and kept for that iteration's trial steps (whose costs
 are then comparable). At the start |d| is the tangent at the projected centre; after that it is the chord |s₂ − s₁|
@@ -29,9 +37,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..camera.model import CameraModel
+from ..camera.model import KERNEL_PARAMS_LEN, MODEL_IDS, CameraModel
 from ..edgelet import Edgelets, perp
 from ..edgelet.edgelet_ba_kernels import frames_updated
+from ..vocabulary import LensModel
 from .bundle_edgelet_kernels import (
     ba_edgelet_linearise,
     ba_edgelet_place,
@@ -44,6 +53,18 @@ from .bundle_inputs import EdgeletBundleInput
 from .bundle_kernels import ba_robust_cost
 from .bundle_schur_kernels import ba_backsub
 from .bundle_structure import BundleStructure, EdgeletStructure, seen_twice
+
+
+def lens_linearised(camera: CameraModel, a: np.ndarray, m_hat: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Measured lines through ``a`` (M, 2) px with unit normals ``m_hat`` on the normalised image plane: the kernel
+    parameters of its unit pinhole (the lens's range kept: the same points are valid), the unprojected points,
+    the normals g = m̂ᵀL (M, 2) and L (M, 2, 2), the lens's pixel Jacobian at each point."""
+    xy = camera.unproject(a)
+    to_px = camera.distort_jacobian(xy) * np.array([camera.fx, camera.fy])[None, :, None]
+    g = np.einsum("mi,mij->mj", m_hat, to_px)
+    plane = np.zeros(KERNEL_PARAMS_LEN)
+    plane[[0, 1, 2, 10]] = MODEL_IDS[LensModel.PINHOLE], 1.0, 1.0, camera.max_radius
+    return plane, np.ascontiguousarray(xy), np.ascontiguousarray(g), np.ascontiguousarray(to_px)
 
 
 class EdgeletLM:
@@ -61,15 +82,14 @@ class EdgeletLM:
         self.bad = np.zeros(self.n, bool)
         if inp is None:
             return
-        self.cam = np.ascontiguousarray(camera.kernel_params(), dtype=np.float64)
         self.F = np.ascontiguousarray(inp.edgelets.subset(es.ids).frames())
-        self.a = inp.obs.a[es.sel]
         b = inp.obs.b[es.sel]
-        self.m_hat = np.ascontiguousarray(perp(b / np.linalg.norm(b, axis=1, keepdims=True)))
+        m_hat = perp(b / np.linalg.norm(b, axis=1, keepdims=True))
+        self.cam, self.a, self.m_hat, self.to_px = lens_linearised(camera, inp.obs.a[es.sel], m_hat)
         self.offset_px = inp.cfg.ba_sample_offset_px
         self.along = np.zeros((self.n, 2))
         self.placed = np.zeros((self.n, 2))
-        ba_edgelet_place(self.cam, P, self.F, es.mcam, es.medg, self.offset_px, self.along)
+        ba_edgelet_place(self.cam, P, self.F, es.mcam, es.medg, self.offset_px, self.to_px, self.along)
         ne = len(es.ids)
         self.V = np.zeros((ne, 4, 4))
         self.eb = np.zeros((ne, 4))
@@ -86,9 +106,8 @@ class EdgeletLM:
         the sample points re-placed there (``placed``)."""
         es = self.es
         meas = (es.mcam, es.medg, self.a, self.m_hat)
-        ba_edgelet_residuals(
-            self.cam, P, F, meas, self.along, self.offset_px, use, self.err, self.e2, self.bad, self.placed
-        )
+        args = (self.along, self.offset_px, self.to_px, use, self.err, self.e2, self.bad, self.placed)
+        ba_edgelet_residuals(self.cam, P, F, meas, *args)
 
     def residuals(self, P: np.ndarray) -> None:
         """The residuals at the current state and their Jacobian rows (for ``linearise``), at sample points placed
