@@ -85,7 +85,8 @@ class EdgeletLM:
         self.F = np.ascontiguousarray(inp.edgelets.subset(es.ids).frames())
         b = inp.obs.b[es.sel]
         m_hat = perp(b / np.linalg.norm(b, axis=1, keepdims=True))
-        self.cam, self.a, self.m_hat, self.to_px = lens_linearised(camera, inp.obs.a[es.sel], m_hat)
+        # The measured lines on the normalised plane: through a, normal g (not unit: pixels per plane unit).
+        self.cam, self.a, self.g, self.to_px = lens_linearised(camera, inp.obs.a[es.sel], m_hat)
         self.offset_px = inp.cfg.ba_sample_offset_px
         self.along = np.zeros((self.n, 2))
         self.placed = np.zeros((self.n, 2))
@@ -105,7 +106,7 @@ class EdgeletLM:
         """e2 and bad (a sample point behind the camera) of the measurements in ``use`` at poses P, frames F, and
         the sample points re-placed there (``placed``)."""
         es = self.es
-        meas = (es.mcam, es.medg, self.a, self.m_hat)
+        meas = (es.mcam, es.medg, self.a, self.g)
         args = (self.along, self.offset_px, self.to_px, use, self.err, self.e2, self.bad, self.placed)
         ba_edgelet_residuals(self.cam, P, F, meas, *args)
 
@@ -115,7 +116,7 @@ class EdgeletLM:
         them there. A trial keeps the sample points of its linearisation, so that its cost is comparable."""
         if self.n:
             es = self.es
-            meas = (es.mcam, es.medg, self.a, self.m_hat)
+            meas = (es.mcam, es.medg, self.a, self.g)
             ba_edgelet_rows(
                 self.cam, P, self.F, meas, self.use, self.along, self.err, self.jp, self.je, self.e2, self.bad
             )
