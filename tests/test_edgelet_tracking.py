@@ -52,7 +52,7 @@ def test_pose_irls_edgelets_matches_reference_and_rejects_outliers(name):
     T0 = se3.exp(np.array([0.02, 0.01, -0.03, 0.01, 0.015, -0.01])) @ T_TRUE
     ones = np.ones(len(E))
     for relin, override in ((4, 0.0), (1, 16.0)):
-        args = (T0, X, np.ones(len(X)), meas, inv_sigma, E, e_meas, normal, ones)
+        args = (T0, X, np.ones(len(X)), meas, inv_sigma, np.zeros((len(X), 2)), E, e_meas, normal, ones)
         args += (10, relin, 0.4, 100.0, 5, override, np.zeros(3), -1.0)
         T, w, ew = pose_irls_edgelets(cam.kernel_params(), *args)
         T_r, w_r, ew_r = pose_irls_edgelets_ref(cam, *args)
@@ -70,7 +70,7 @@ def test_edgelets_alone_fix_the_pose():
     _, _, _, E, e_meas, normal, _ = _problem(cam, rng, 0, 200, 0.0)
     T0 = se3.exp(np.array([0.01, -0.01, 0.02, 0.005, 0.01, -0.01])) @ T_TRUE
     none = np.zeros((0, 3))
-    args = (T0, none, np.zeros(0), np.zeros((0, 2)), np.zeros(0), E, e_meas, normal, np.ones(len(E)))
+    args = (T0, none, np.zeros(0), np.zeros((0, 2)), np.zeros(0), np.zeros((0, 2)), E, e_meas, normal, np.ones(len(E)))
     T, w, ew = pose_irls_edgelets(cam.kernel_params(), *args, 10, 1, 0.4, 100.0, 5, 0.0, np.zeros(3), -1.0)
     err = se3.log(T @ se3.inv(T_TRUE))
     assert len(w) == 0 and np.linalg.norm(err[:3]) < 4e-3 and np.degrees(np.linalg.norm(err[3:])) < 0.1
@@ -119,7 +119,8 @@ def test_blurred_frame_search_and_pose(card_map):
     assert np.median(np.abs(resid)) < 0.7 and np.mean(np.abs(resid) < 2.0) > 0.85
     assert tracker.usable(frame)
     none = np.zeros((0, 3))
-    T, _, weighted = tracker.final_pose(T_pred, none, np.zeros(0), np.zeros((0, 2)), np.zeros(0), True, frame)
+    flat = np.zeros((0, 2))
+    T, _, weighted = tracker.final_pose(T_pred, none, np.zeros(0), flat, np.zeros(0), flat, True, frame)
     err = se3.log(T @ se3.inv(T_mid))
     assert np.linalg.norm(err[:3]) < 3e-3 and np.degrees(np.linalg.norm(err[3:])) < 0.15
     assert (weighted.weights[frame.found] > 0).mean() > 0.8
@@ -142,7 +143,8 @@ def test_desk_blur_with_edgelets():
     d = sequence("desk_blur")
     on, system = _run(d, config())
     points, _ = _run(d, load_config(overrides=["edgelets.enabled=false"]))
-    ptam, _ = _run(d, load_config(overrides=["edgelets.enabled=false", "tracker.blur_gate_patch_widths=.inf"]))
+    ptam_points = ["edgelets.enabled=false", "tracker.blur_gate_patch_widths=.inf", "tracker.smear_variance=0"]
+    ptam, _ = _run(d, load_config(overrides=ptam_points))
     for name, s in (("edgelets", on), ("points only", points), ("PTAM's points", ptam)):
         print(
             f"desk_blur {name}: correct {s.correct_fraction:.3f}, ATE {1e3 * s.ate_rmse_m:.2f} mm, "

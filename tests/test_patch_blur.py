@@ -1,9 +1,10 @@
 """The blur a patch is expected to suffer (Agility eq. 10 for points) and the gate on it (``tracking.patch_blur``)."""
 
 import numpy as np
+import pytest
 
 from ptam.geometry import se3
-from ptam.tracking.patch_blur import patch_blur, searchable
+from ptam.tracking.patch_blur import patch_blur, patch_smear, searchable, smear_axes
 from tests.reference.patch_blur import patch_blur_ref
 from tests.support.cameras import CAMERAS
 
@@ -60,3 +61,34 @@ def test_the_gate_is_one_patch_width_at_the_search_level():
     level = np.array([0, 0, 1, 1, 3, 3])
     np.testing.assert_array_equal(searchable(blur, level, 8, 1.0), [True, False, True, False, True, False])
     assert searchable(blur, level, 8, np.inf).all()
+
+
+def test_smear_axes_add_the_smear_variance_along_the_smear_only():
+    """The information σ⁻²·(I − a·aᵀ) of ``smear_axes`` is the inverse of a covariance with σ² = 4^level across
+    the smear and σ² + v·|s|² along it; no smear (or none known) leaves PTAM's σ⁻²·I."""
+    smear = np.array([[12.0, 5.0], [0.0, -3.0], [0.0, 0.0], [np.inf, np.inf]])
+    level = np.array([0, 2, 1, 0])
+    v = 1.0 / 12.0
+    a = smear_axes(smear, level, v)
+    np.testing.assert_array_equal(a[2:], 0.0)
+    for k in range(2):
+        sigma2 = 4.0 ** level[k]
+        cov = np.linalg.inv((np.eye(2) - np.outer(a[k], a[k])) / sigma2)
+        along = smear[k] / np.linalg.norm(smear[k])
+        across = np.array([-along[1], along[0]])
+        assert along @ cov @ along == pytest.approx(sigma2 + v * smear[k] @ smear[k], rel=1e-12)
+        assert across @ cov @ across == pytest.approx(sigma2, rel=1e-12)
+        assert along @ cov @ across == pytest.approx(0.0, abs=1e-9)
+
+
+def test_smear_is_the_blur_with_its_direction():
+    rng = np.random.default_rng(6)
+    T = se3.exp(np.array([0.05, -0.02, 0.01, 0.1, -0.2, 0.05]))
+    gamma = np.array([0.01, -0.004, 0.006, 0.02, -0.03, 0.01])
+    for name, cam in CAMERAS.items():
+        X = se3.transform(se3.inv(T), _points(rng, 100))
+        Xc = se3.transform(T, X)
+        moved = cam.project(se3.transform(se3.exp(1e-4 * gamma) @ T, X)) - cam.project(Xc)
+        smear = patch_smear(cam, T, X, np.ones(len(X)), gamma)
+        np.testing.assert_allclose(1e-4 * smear, moved, rtol=1e-3, atol=1e-9, err_msg=name)
+        np.testing.assert_array_equal(np.hypot(smear[:, 0], smear[:, 1]), patch_blur(cam, T, X, np.ones(len(X)), gamma))

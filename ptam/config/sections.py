@@ -90,6 +90,7 @@ class TrackerConfig:
     fine_subpix_blur_fraction: Annotated[float, Range("[0, 1]")]
     exposure_fraction: Annotated[float, Range("[0, inf)")]
     blur_gate_patch_widths: Annotated[float, Range("(0, inf]")]
+    smear_variance: Annotated[float, Range("[0, inf)")]
     recovery_coarse_factor: Annotated[int, Range("[1, inf)")]
     pose_prior: Annotated[float, Range("[0, inf)")]
     tukey_override_enabled: bool

@@ -115,8 +115,9 @@ class EdgeletTracker:
         """Enough edgelets were found for the joint [R|t] update (see the module docstring)."""
         return frame.n_found >= self.ecfg.track_min_found
 
-    def final_pose(self, T_cw, X, Xw, xy, level, fixed_sigma: bool, frame: EdgeletFrame, coarse: bool = False):
-        """A pose from points (X, Xw homogeneous, found at ``xy`` on ``level``) and the found edgelets: the fine
+    def final_pose(self, T_cw, X, Xw, xy, level, smear, fixed_sigma: bool, frame: EdgeletFrame, coarse: bool = False):
+        """A pose from points (X, Xw homogeneous, found at ``xy`` on ``level``, with smear axes ``smear``,
+        ``patch_blur.smear_axes``) and the found edgelets: the fine
         stage's final one, or with ``coarse`` the coarse stage's (re-linearised every iteration, the coarse
         Tukey override, as ``update_pose``): (T_cw, point weights, the frame with its edgelet weights)."""
         tcfg = self.cfg.tracker
@@ -130,6 +131,7 @@ class EdgeletTracker:
             np.ascontiguousarray(Xw, dtype=np.float64),
             np.ascontiguousarray(xy, dtype=np.float64),
             np.exp2(-np.asarray(level, dtype=np.float64)),
+            np.ascontiguousarray(smear, dtype=np.float64),
             np.ascontiguousarray(frame.centre[f]),
             np.ascontiguousarray(frame.xy[f]),
             np.ascontiguousarray(frame.normal[f]),

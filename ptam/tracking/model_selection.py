@@ -80,17 +80,20 @@ def select_pose_model(
     fixed_sigma: bool,
     c_ref: np.ndarray,
     t_max: float,
+    smear: np.ndarray | None = None,
 ) -> ModelChoice:
     """Estimate [R|t ≤ t_max] from all features (X, Xw homogeneous: Xw = 0 for rays) and [R|t] from the map
     points, starting at ``T_cw``; keep the model with the lower GRIC on the map points, both fitted to them.
+    ``smear``: the matches' smear axes (``update_pose``); GRIC scores the models on PTAM's isotropic errors.
     ``cam``: the camera's kernel parameters (``camera.kernel_params()``, built once by the tracker)."""
-    T_rot, w_rot = update_pose(cam, tcfg, T_cw, X, xy, level, False, fixed_sigma, Xw, c_ref, t_max)
+    T_rot, w_rot = update_pose(cam, tcfg, T_cw, X, xy, level, False, fixed_sigma, Xw, c_ref, t_max, smear)
     sfm = Xw > 0
     if np.count_nonzero(sfm) < cfg.min_sfm_points:
         return ModelChoice(PoseModel.ROTATION, T_rot, w_rot, math.nan, math.nan)
     X3, xy3, level3 = X[sfm], xy[sfm], level[sfm]
-    T_gen, w_sfm = update_pose(cam, tcfg, T_cw, X3, xy3, level3, False, fixed_sigma)
-    T_rot3, _ = update_pose(cam, tcfg, T_cw, X3, xy3, level3, False, fixed_sigma, None, c_ref, t_max)
+    smear3 = None if smear is None else smear[sfm]
+    T_gen, w_sfm = update_pose(cam, tcfg, T_cw, X3, xy3, level3, False, fixed_sigma, smear=smear3)
+    T_rot3, _ = update_pose(cam, tcfg, T_cw, X3, xy3, level3, False, fixed_sigma, None, c_ref, t_max, smear3)
     area = (2.0 * tcfg.fine_radius_px) ** 2  # Table 2: S × S, the search region, in the errors' level units
     scores = []
     level_f = level3.astype(np.float64)

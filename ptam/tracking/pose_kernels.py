@@ -9,6 +9,10 @@ inside c, 0 outside. The 6×6 normal equations, plus a stabilising prior on the 
 only every ``relinearise_every`` iterations and at the last one (PTAM §6.5); in between the predicted pixels
 move linearly by J·μ (PTAM code: ``TrackerData::LinearUpdate``).
 
+A measurement may carry a smear axis a (|a| < 1): its information is σ⁻²·(I − a·aᵀ) instead of σ⁻²·I, less along
+the direction its patch was smeared by motion blur (``patch_blur.smear_axes``); its scaled squared error is
+rᵀ(I − a·aᵀ)r/σ². a = 0 is PTAM's measurement.
+
 Points are homogeneous (X, w): w = 1 for a map point, w = 0 for a panorama feature, a ray without depth
 (Gauglitz et al. §3.2), whose image depends on the camera's rotation only. ``t_max`` ≥ 0 keeps the camera centre
 within ``t_max`` of ``c_ref`` after every iteration: Gauglitz et al. §6.2's [R|t ≤ t_max], the rotation-only
@@ -46,21 +50,36 @@ def tukey_sigma_sq(err_sq, min_sigma):
     return max(c * c, min_sigma * min_sigma)
 
 
+@njit(nogil=True, cache=True, inline="always")
+def smeared_sq(r0, r1, a0, a1):
+    """|r|² − (a·r)²: the squared error rᵀ(I − a·aᵀ)r of a measurement with smear axis a (in units of σ²)."""
+    ar = a0 * r0 + a1 * r1
+    return r0 * r0 + r1 * r1 - ar * ar
+
+
 @njit(nogil=True, cache=True)
-def normal_equations(J, r, inv_sigma, w):
-    """H = Σ w s² JᵀJ (6, 6) and g = Σ w s² Jᵀr (6,) for pixel Jacobians J (n, 2, 6), residuals r (n, 2)."""
+def normal_equations(J, r, inv_sigma, smear, w):
+    """H = Σ w s² Jᵀ(I − a·aᵀ)J (6, 6) and g = Σ w s² Jᵀ(I − a·aᵀ)r (6,) for pixel Jacobians J (n, 2, 6),
+    residuals r (n, 2), s = 1/σ and smear axes a (n, 2) (0: PTAM's isotropic σ)."""
     H = np.zeros((6, 6))
     g = np.zeros(6)
+    ja = np.empty(6)
     for k in range(J.shape[0]):
         wk = w[k] * inv_sigma[k] * inv_sigma[k]
         if wk == 0.0:
             continue
+        a0 = smear[k, 0]
+        a1 = smear[k, 1]
+        ar = a0 * r[k, 0] + a1 * r[k, 1]
+        for a in range(6):
+            ja[a] = a0 * J[k, 0, a] + a1 * J[k, 1, a]
         for a in range(6):
             ja0 = J[k, 0, a] * wk
             ja1 = J[k, 1, a] * wk
-            g[a] += ja0 * r[k, 0] + ja1 * r[k, 1]
+            jaa = ja[a] * wk
+            g[a] += ja0 * r[k, 0] + ja1 * r[k, 1] - jaa * ar
             for b in range(a, 6):
-                H[a, b] += ja0 * J[k, 0, b] + ja1 * J[k, 1, b]
+                H[a, b] += ja0 * J[k, 0, b] + ja1 * J[k, 1, b] - jaa * ja[b]
     for a in range(6):
         for b in range(a):
             H[a, b] = H[b, a]
@@ -100,6 +119,7 @@ def pose_irls(
     Xw,
     meas,
     inv_sigma,
+    smear,
     n_iters,
     relinearise_every,
     min_sigma,
@@ -110,7 +130,9 @@ def pose_irls(
     t_max,
 ):
     """Robust pose from world points (X, Xw) (n, 3), (n,) measured at level-0 pixels meas (n, 2) with 1/σ
-    inv_sigma (n,); the camera centre kept within ``t_max`` of ``c_ref`` when ``t_max`` ≥ 0.
+    inv_sigma (n,) and smear axes ``smear`` (n, 2) (the information σ⁻²·(I − a·aᵀ): a match smeared along a is
+    less certain along it, ``patch_blur.smear_axes``; zeros: PTAM's isotropic σ); the camera centre kept within
+    ``t_max`` of ``c_ref`` when ``t_max`` ≥ 0.
 
     ``override_sigma_sq`` > 0 caps the median-based c² in iterations after ``override_after`` (PTAM code's fixed
     sigma, which PTAM uses instead of the median: the stricter of the two is kept, so many wrong matches cannot
@@ -126,6 +148,7 @@ def pose_irls(
         Xw,
         meas,
         inv_sigma,
+        smear,
         none,
         flat,
         flat,
@@ -168,6 +191,7 @@ def pose_irls_edgelets(
     Xw,
     meas,
     inv_sigma,
+    smear,
     E,
     e_meas,
     e_normal,
@@ -217,7 +241,7 @@ def pose_irls_edgelets(
             r[k, 0] = meas[k, 0] - uv[k, 0]
             r[k, 1] = meas[k, 1] - uv[k, 1]
             if valid[k]:
-                err_sq[k2] = (r[k, 0] * r[k, 0] + r[k, 1] * r[k, 1]) * inv_sigma[k] * inv_sigma[k]
+                err_sq[k2] = smeared_sq(r[k, 0], r[k, 1], smear[k, 0], smear[k, 1]) * inv_sigma[k] * inv_sigma[k]
                 k2 += 1
         for k in range(m):
             er[k] = e_normal[k, 0] * (e_meas[k, 0] - e_uv[k, 0]) + e_normal[k, 1] * (e_meas[k, 1] - e_uv[k, 1])
@@ -230,12 +254,12 @@ def pose_irls_edgelets(
         if override_sigma_sq > 0.0 and it > override_after:
             c2 = min(c2, override_sigma_sq)
         for k in range(n):
-            e2 = (r[k, 0] * r[k, 0] + r[k, 1] * r[k, 1]) * inv_sigma[k] * inv_sigma[k]
+            e2 = smeared_sq(r[k, 0], r[k, 1], smear[k, 0], smear[k, 1]) * inv_sigma[k] * inv_sigma[k]
             w[k] = _tukey_weight(e2, c2) if valid[k] else 0.0
         for k in range(m):
             e2 = er[k] * er[k] * e_inv_sigma[k] * e_inv_sigma[k]
             ew[k] = _tukey_weight(e2, c2) if e_valid[k] else 0.0
-        H, g = normal_equations(J, r, inv_sigma, w)
+        H, g = normal_equations(J, r, inv_sigma, smear, w)
         for k in range(m):
             wk = ew[k] * e_inv_sigma[k] * e_inv_sigma[k]
             if wk == 0.0:

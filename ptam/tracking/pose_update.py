@@ -23,11 +23,13 @@ def update_pose(
     Xw: np.ndarray | None = None,
     c_ref: np.ndarray | None = None,
     t_max: float = -1.0,
+    smear: np.ndarray | None = None,
 ):
     """New T_cw and Tukey weights (n,) from world points X (n, 3) found at level-0 pixels ``xy`` on ``level``.
 
     ``Xw``: homogeneous weights (1 for map points, 0 for panorama rays, whose X is then a direction); ``t_max``
-    ≥ 0 keeps the camera centre within ``t_max`` of ``c_ref`` (Gauglitz et al. §6.2).
+    ≥ 0 keeps the camera centre within ``t_max`` of ``c_ref`` (Gauglitz et al. §6.2). ``smear``: the matches' smear
+    axes (n, 2) (``patch_blur.smear_axes``), None for none.
 
     The coarse stage re-linearises at every iteration (PTAM code); the fine stage every
     ``relinearise_every`` iterations (PTAM §6.5). With ``tracker.tukey_override_enabled`` the last iterations
@@ -47,6 +49,7 @@ def update_pose(
         np.ones(len(X)) if Xw is None else np.ascontiguousarray(Xw, dtype=np.float64),
         np.ascontiguousarray(xy, dtype=np.float64),
         inv_sigma,
+        np.zeros((len(X), 2)) if smear is None else np.ascontiguousarray(smear, dtype=np.float64),
         int(cfg.irls_iterations),
         1 if coarse else int(cfg.relinearise_every),
         float(cfg.min_tukey_sigma),

@@ -10,7 +10,8 @@
 5. fine stage: every remaining top-level point and a random subset of the others, up to ``max_patches``
    measurements in all, re-projected with the coarse pose, searched over a tight radius, with sub-pixel
    refinement from ``fine_subpix_min_level`` up (every level with ``fine_subpix_all_levels``, but under rapid motion);
-6. final pose from the coarse and fine measurements together (§5.4), then motion model and quality (§5.6);
+6. final pose from the coarse and fine measurements together (§5.4), each match less certain along the smear its
+   patch is expected to suffer (:func:`.patch_blur.smear_axes`), then motion model and quality (§5.6);
    failure detection is suspended while the prior rotates faster than ``reloc.rapid_rotation_deg`` (Agility §8).
    With ``model_selection.enabled`` the final pose is the better of [R|t] and [R|t ≤ t_max] by GRIC (Gauglitz
    et al. §4.2, :mod:`.model_selection`); panorama features (rays) constrain the rotation only.
@@ -38,7 +39,7 @@ from ..vocabulary import PoseModel
 from .edgelet_tracking import EdgeletFrame, EdgeletTracker
 from .model_selection import select_pose_model
 from .motion_model import FrameGaps, MotionModel
-from .patch_blur import patch_blur, searchable
+from .patch_blur import patch_blur, patch_smear, searchable, smear_axes
 from .pose_update import update_pose
 from .projection import project_points
 from .quality import GOOD, TrackingQuality
@@ -180,10 +181,11 @@ class Tracker:
         if did_coarse:
             X, Xw = snapshot.features(ids[m.found])
             xy, lv = m.xy[m.found], level[m.found]
+            smear = self._smear_axes(T, X, Xw, lv, m.subpix[m.found])
             if with_edges:
-                T, _, _ = self.edgelets.final_pose(T, X, Xw, xy, lv, not self._rapid, edges, coarse=True)
+                T, _, _ = self.edgelets.final_pose(T, X, Xw, xy, lv, smear, not self._rapid, edges, coarse=True)
             else:
-                T, _ = update_pose(self._cam, cfg, T, X, xy, lv, True, not self._rapid, Xw)
+                T, _ = update_pose(self._cam, cfg, T, X, xy, lv, True, not self._rapid, Xw, smear=smear)
         clock.lap(POSE)
         return T, did_coarse
 
@@ -221,17 +223,20 @@ class Tracker:
         if found.any() or with_edges:  # under heavy blur the edgelets alone may hold the pose (Agility §5)
             X, Xw = snapshot.features(batch.ids()[found])
             level = batch.level()[found]
+            smear = self._smear_axes(T, X, Xw, level, batch.subpix()[found])
             if with_edges:
-                T, w, self._edges = self.edgelets.final_pose(T, X, Xw, xy[found], level, not self._rapid, self._edges)
+                T, w, self._edges = self.edgelets.final_pose(
+                    T, X, Xw, xy[found], level, smear, not self._rapid, self._edges
+                )
             elif self.cfg.model_selection.enabled:
-                T, w = self._select_model(snapshot, T, X, Xw, xy[found], level)
+                T, w = self._select_model(snapshot, T, X, Xw, xy[found], level, smear)
                 clock.lap(MODEL)
             else:
-                T, w = update_pose(self._cam, cfg, T, X, xy[found], level, False, not self._rapid, Xw)
+                T, w = update_pose(self._cam, cfg, T, X, xy[found], level, False, not self._rapid, Xw, smear=smear)
             batch.weights[found] = w
         return T
 
-    def _select_model(self, snapshot, T, X, Xw, xy, level):
+    def _select_model(self, snapshot, T, X, Xw, xy, level, smear):
         """Gauglitz et al. §4.2, §6.2: [R|t] against [R|t ≤ t_max] about the nearest keyframe's centre, where
         t_max = α_max·depth and α_max = r_fine / f keeps the panorama's rays inside the fine search radius."""
         nearest, _ = snapshot.nearest_keyframe(T)
@@ -251,6 +256,7 @@ class Tracker:
             not self._rapid,
             c_ref,
             t_max,
+            smear,
         )
         self._model = choice.model
         return choice.T_cw, choice.weights
@@ -265,6 +271,18 @@ class Tracker:
         A, level = search_warps(self._cam, self.cfg.patch, self.n_levels, T, proj.Xc, right[proj.ids], down[proj.ids])
         ok = level >= 0
         return proj.ids[ok], proj.uv[ok], level[ok], template_matrices(A[ok], level[ok])
+
+    def _smear_axes(self, T, X, Xw, level, refined):
+        """The found matches' smear axes for the pose update (``patch_blur.smear_axes``), from the smear their
+        patches are expected to suffer at pose T; none for ``refined`` (sub-pixel) matches, which align the whole
+        template and so sit at the smear's centre. An integer match (PTAM's search: the best FAST corner in the
+        radius, kept where the refinement is not run or, in a blurred frame, did not converge) is wherever the
+        smear left a corner."""
+        if self.tcfg.smear_variance == 0.0:  # PTAM's measurements: nothing to predict
+            return np.zeros((len(X), 2))
+        smear = patch_smear(self.camera, T, X, Xw, self.motion.exposure_motion(self.tcfg.exposure_fraction))
+        smear[refined] = 0.0
+        return smear_axes(smear, level, self.tcfg.smear_variance)
 
     def _unblurred(self, snapshot, T, ids, uv, level, M):
         """The candidates whose expected blur leaves their patch searchable (``patch_blur``)."""

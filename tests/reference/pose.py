@@ -17,9 +17,14 @@ def tukey_sigma_sq_ref(err_sq, min_sigma):
     return max(c * c, min_sigma**2)
 
 
-def normal_equations_ref(J, r, inv_sigma, w):
-    ws = w * inv_sigma**2
-    return np.einsum("n,nai,naj->ij", ws, J, J), np.einsum("n,nai,na->i", ws, J, r)
+def information_ref(inv_sigma, smear):
+    """Each measurement's 2×2 information σ⁻²·(I − a·aᵀ)."""
+    return inv_sigma[:, None, None] ** 2 * (np.eye(2) - np.einsum("na,nb->nab", smear, smear))
+
+
+def normal_equations_ref(J, r, inv_sigma, smear, w):
+    info = w[:, None, None] * information_ref(inv_sigma, smear)
+    return np.einsum("nai,nab,nbj->ij", J, info, J), np.einsum("nai,nab,nb->i", J, info, r)
 
 
 def pose_irls_ref(
@@ -29,6 +34,7 @@ def pose_irls_ref(
     Xw,
     meas,
     inv_sigma,
+    smear,
     n_iters,
     relinearise_every,
     min_sigma,
@@ -49,6 +55,7 @@ def pose_irls_ref(
         Xw,
         meas,
         inv_sigma,
+        smear,
         none,
         none[:, :2],
         none[:, :2],
@@ -67,6 +74,7 @@ def pose_irls_edgelets_ref(
     Xw,
     meas,
     inv_sigma,
+    smear,
     E,
     e_meas,
     e_normal,
@@ -102,14 +110,16 @@ def pose_irls_edgelets_ref(
         r = meas - uv[:n]
         er = np.sum(e_normal * (e_meas - uv[n:]), axis=1)
         je = np.einsum("ma,mab->mb", e_normal, J[n:])
-        e2 = np.concatenate([(r**2).sum(axis=1) * inv_sigma**2, er**2 * e_inv_sigma**2])
+        e2 = np.concatenate(
+            [np.einsum("na,nab,nb->n", r, information_ref(inv_sigma, smear), r), er**2 * e_inv_sigma**2]
+        )
         if not valid.any():
             break
         c2 = tukey_sigma_sq_ref(e2[valid], min_sigma)
         if override_sigma_sq > 0 and it > override_after:
             c2 = min(c2, override_sigma_sq)
         w = np.where(valid & (e2 <= c2), (1.0 - e2 / c2) ** 2, 0.0)
-        H, g = normal_equations_ref(J[:n], r, inv_sigma, w[:n])
+        H, g = normal_equations_ref(J[:n], r, inv_sigma, smear, w[:n])
         we = w[n:] * e_inv_sigma**2
         H = H + np.einsum("m,ma,mb->ab", we, je, je)
         g = g + np.einsum("m,ma,m->a", we, je, er)
