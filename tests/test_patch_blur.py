@@ -8,6 +8,9 @@ from ptam.tracking.patch_blur import patch_blur, patch_smear, searchable, smear_
 from tests.reference.patch_blur import patch_blur_ref
 from tests.support.cameras import CAMERAS
 
+MOVED = se3.exp(np.array([0.05, -0.02, 0.01, 0.1, -0.2, 0.05]))  # a pose and an exposure motion for the kernels
+MOTION = np.array([0.01, -0.004, 0.006, 0.02, -0.03, 0.01])
+
 
 def _points(rng, n=200):
     return np.column_stack([rng.uniform(-0.6, 0.6, n), rng.uniform(-0.4, 0.4, n), rng.uniform(0.8, 2.5, n)])
@@ -31,8 +34,7 @@ def test_blur_is_the_image_motion_during_the_exposure():
 def test_kernel_matches_the_numpy_reference():
     """Points and rays, on every lens model, to 1e-12 of the largest blur."""
     rng = np.random.default_rng(5)
-    T = se3.exp(np.array([0.05, -0.02, 0.01, 0.1, -0.2, 0.05]))
-    gamma = np.array([0.01, -0.004, 0.006, 0.02, -0.03, 0.01])
+    T, gamma = MOVED, MOTION
     for name, cam in CAMERAS.items():
         X = se3.transform(se3.inv(T), _points(rng, 300))
         w = (rng.random(300) < 0.8).astype(float)
@@ -83,8 +85,7 @@ def test_smear_axes_add_the_smear_variance_along_the_smear_only():
 
 def test_smear_is_the_blur_with_its_direction():
     rng = np.random.default_rng(6)
-    T = se3.exp(np.array([0.05, -0.02, 0.01, 0.1, -0.2, 0.05]))
-    gamma = np.array([0.01, -0.004, 0.006, 0.02, -0.03, 0.01])
+    T, gamma = MOVED, MOTION
     for name, cam in CAMERAS.items():
         X = se3.transform(se3.inv(T), _points(rng, 100))
         Xc = se3.transform(T, X)
