@@ -68,18 +68,24 @@ def normal_equations(J, r, inv_sigma, smear, w):
         wk = w[k] * inv_sigma[k] * inv_sigma[k]
         if wk == 0.0:
             continue
+        for a in range(6):
+            ja0 = J[k, 0, a] * wk
+            ja1 = J[k, 1, a] * wk
+            g[a] += ja0 * r[k, 0] + ja1 * r[k, 1]
+            for b in range(a, 6):
+                H[a, b] += ja0 * J[k, 0, b] + ja1 * J[k, 1, b]
         a0 = smear[k, 0]
         a1 = smear[k, 1]
+        if a0 == 0.0 and a1 == 0.0:  # PTAM's isotropic measurement
+            continue
         ar = a0 * r[k, 0] + a1 * r[k, 1]
         for a in range(6):
             ja[a] = a0 * J[k, 0, a] + a1 * J[k, 1, a]
         for a in range(6):
-            ja0 = J[k, 0, a] * wk
-            ja1 = J[k, 1, a] * wk
             jaa = ja[a] * wk
-            g[a] += ja0 * r[k, 0] + ja1 * r[k, 1] - jaa * ar
+            g[a] -= jaa * ar
             for b in range(a, 6):
-                H[a, b] += ja0 * J[k, 0, b] + ja1 * J[k, 1, b] - jaa * ja[b]
+                H[a, b] -= jaa * ja[b]
     for a in range(6):
         for b in range(a):
             H[a, b] = H[b, a]
