@@ -117,9 +117,9 @@ class EdgeletTracker:
 
     def final_pose(self, T_cw, X, Xw, xy, level, smear, fixed_sigma: bool, frame: EdgeletFrame, coarse: bool = False):
         """A pose from points (X, Xw homogeneous, found at ``xy`` on ``level``, with smear axes ``smear``,
-        ``patch_blur.smear_axes``) and the found edgelets: the fine
-        stage's final one, or with ``coarse`` the coarse stage's (re-linearised every iteration, the coarse
-        Tukey override, as ``update_pose``): (T_cw, point weights, the frame with its edgelet weights)."""
+        ``patch_blur.smear_axes``) and the found edgelets: the fine stage's final one, or with ``coarse`` the coarse
+        stage's (re-linearised every iteration, the coarse Tukey override, as ``update_pose``): (T_cw, point
+        weights, the frame with its edgelet weights)."""
         tcfg = self.cfg.tracker
         sigma_sq = tcfg.tukey_override_sigma_sq_coarse if coarse else tcfg.tukey_override_sigma_sq_fine
         override = sigma_sq if tcfg.tukey_override_enabled and fixed_sigma else 0.0

@@ -10,11 +10,11 @@
 5. fine stage: every remaining top-level point and a random subset of the others, up to ``max_patches``
    measurements in all, re-projected with the coarse pose, searched over a tight radius, with sub-pixel
    refinement from ``fine_subpix_min_level`` up (every level with ``fine_subpix_all_levels``, but under rapid motion);
-6. final pose from the coarse and fine measurements together (§5.4), each match less certain along the smear its
-   patch is expected to suffer (:func:`.patch_blur.smear_axes`), then motion model and quality (§5.6);
-   failure detection is suspended while the prior rotates faster than ``reloc.rapid_rotation_deg`` (Agility §8).
-   With ``model_selection.enabled`` the final pose is the better of [R|t] and [R|t ≤ t_max] by GRIC (Gauglitz
-   et al. §4.2, :mod:`.model_selection`); panorama features (rays) constrain the rotation only.
+6. final pose from the coarse and fine measurements together (§5.4; with ``smear_variance`` > 0 an integer match
+   is less certain along its patch's expected smear, :func:`.patch_blur.smear_axes`), then motion model and
+   quality (§5.6); failure detection is suspended while the prior rotates faster than ``reloc.rapid_rotation_deg``
+   (Agility §8). With ``model_selection.enabled`` the final pose is the better of [R|t] and [R|t ≤ t_max] by GRIC
+   (Gauglitz et al. §4.2, :mod:`.model_selection`); panorama features (rays) constrain the rotation only.
 
 The tracker reads the immutable :class:`~ptam.map.snapshot.MapSnapshot` it is given and takes no lock. Per-point
 work is vectorised or in numba kernels; the Python code here handles whole arrays only.
