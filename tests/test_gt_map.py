@@ -8,6 +8,7 @@ from ptam.errors import InputError
 from ptam.geometry import se3
 from ptam.image.pyramid import level_to_zero, zero_to_level
 from ptam.synthetic import load_scene
+from ptam.synthetic.scene import Scene
 
 CFG = default_config()
 
@@ -64,6 +65,28 @@ def test_no_near_duplicate_points(scene, gt):
             if len(busy) and new.any():
                 dist, _ = cKDTree(busy).query(s.source_xy[new])
                 assert dist.min() >= d - 1e-9
+
+
+def test_a_keyframe_over_mapped_ground_adds_no_point_but_keeps_its_depth(scene):
+    """A keyframe whose every corner lies near a point already in the map (a camera back over mapped ground) is a
+    keyframe without new points; its depth sample is the surface under all its corners, as in a fresh view."""
+    once = build_gt_map(scene, CFG, kf_every=1, frames=[0]).snapshot()
+    twice = build_gt_map(scene, CFG, kf_every=1, frames=[0, 0]).snapshot()
+    assert twice.n_keyframes == 2 and twice.n_points == once.n_points > 300
+    assert np.array_equal(twice.source_kf, np.zeros(once.n_points))
+    first, again = twice.keyframes
+    assert again.scene_depth_mean == first.scene_depth_mean == once.keyframes[0].scene_depth_mean
+    assert again.scene_depth_sigma == first.scene_depth_sigma
+    z = se3.transform(twice.kf_T_cw[0], twice.X)[:, 2]
+    assert abs(first.scene_depth_mean - z.mean()) < 0.01 * z.mean()  # the points' mean depth, within 1 %
+
+
+def test_frames_without_a_corner_on_a_surface_make_no_keyframe(scene):
+    blank = dict(
+        scene.spec, rectangles=[dict(r, texture={"type": "constant", "value": 128}) for r in scene.spec["rectangles"]]
+    )
+    with pytest.raises(InputError, match="sees a corner"):
+        build_gt_map(Scene("blank", blank), CFG, kf_every=20, frames=range(0, 60))
 
 
 def test_bad_arguments(scene):

@@ -25,7 +25,8 @@ from ..map.map import SRC_ROOT, Map
 def build_gt_map(scene, cfg, kf_every: int | None = None, max_points: int | None = None, frames=None) -> Map:
     """A :class:`Map` with keyframes at ``frames[::kf_every]`` (default: all frames of the scene) and their true
     poses, and every point PTAM's candidate rules allow, each measured in its source keyframe. If there are more
-    than ``max_points``, a random subset (seeded, so spatially unbiased and reproducible) is kept."""
+    than ``max_points``, a random subset (seeded, so spatially unbiased and reproducible) is kept. A frame with no
+    corner on a scene surface (blank or smeared by motion blur) is no keyframe; none at all is an error."""
     g = cfg.gtmap
     kf_every = g.kf_every if kf_every is None else int(kf_every)
     max_points = g.max_points if max_points is None else int(max_points)
@@ -42,8 +43,8 @@ def build_gt_map(scene, cfg, kf_every: int | None = None, max_points: int | None
         T_wc = np.asarray(scene.poses_T_wc[f], dtype=np.float64)
         pyr = Pyramid.build(scene.render_frame(int(f)), cfg.image)
         new_xy, new_level, new_X, depths = _pick_points(scene, cfg, pyr, T_wc, X, level_of)
-        if not depths.size:
-            raise InputError(f"gt map: frame {f} sees no textured scene surface")
+        if not depths.size:  # no corner on any surface (blank or blurred): PTAM makes no keyframe of it either
+            continue
         keyframes.append(
             KeyFrame(len(keyframes), pyr, *KeyFrame.depth_stats(depths), timestamp=float(scene.timestamps[f]))
         )
@@ -53,6 +54,8 @@ def build_gt_map(scene, cfg, kf_every: int | None = None, max_points: int | None
         level_of = np.concatenate([level_of, new_level])
         kf_of = np.concatenate([kf_of, np.full(len(new_X), len(keyframes) - 1, np.int32)])
 
+    if not keyframes:
+        raise InputError(f"gt map: none of frames {frames[0]}-{frames[-1]} sees a corner on a scene surface")
     keep = np.arange(len(X))
     if len(X) > max_points:
         keep = np.sort(np.random.default_rng(g.seed).choice(len(X), max_points, replace=False))
@@ -68,7 +71,8 @@ def build_gt_map(scene, cfg, kf_every: int | None = None, max_points: int | None
 def _pick_points(scene, cfg, pyr: Pyramid, T_wc: np.ndarray, X: np.ndarray, level: np.ndarray):
     """New points of one keyframe given the earlier points (``X``, source ``level``): per level, the candidates
     away from busy positions, thinned, whose patch lies on one plane. Returns (xy at their level, level, X world)
-    and the depths of all candidates' surface hits (the keyframe's depth sample)."""
+    and the depths of all candidates' surface hits (the keyframe's depth sample, PTAM's depths of the points it
+    measures: also those near points already in the map, which add no new point)."""
     g = cfg.gtmap
     Xc = se3.transform(se3.inv(T_wc), X)
     seen = Xc[:, 2] > 0
@@ -79,13 +83,13 @@ def _pick_points(scene, cfg, pyr: Pyramid, T_wc: np.ndarray, X: np.ndarray, leve
     # Coarse levels first, so finer levels see the points just placed one level up (ThinCandidates' rule).
     for L in reversed(range(cfg.image.levels)):
         xy, score = candidates(pyr.levels[L], cfg.image.fast_thresholds[L], cfg.image)
+        depths.append(_surface_depths(scene, T_wc, level_to_zero(xy, L)))
         busy = (busy_level == L) | (busy_level == L + 1)
         if busy.any() and len(xy):
             dist, _ = cKDTree(zero_to_level(busy_uv[busy], L)).query(xy, distance_upper_bound=g.min_distance_px)
             xy, score = xy[~np.isfinite(dist)], score[~np.isfinite(dist)]
         xy, _ = _thin(xy, score, g.min_distance_px)
-        P, depth, ok = _surface_points(scene, T_wc, xy, L, half_patch, g.planarity_tol)
-        depths.append(depth[ok])
+        P, ok = _surface_points(scene, T_wc, xy, L, half_patch, g.planarity_tol)
         out_xy.append(xy[ok].astype(np.float64))
         out_level.append(np.full(int(ok.sum()), L, np.int8))
         out_X.append(P[ok])
@@ -120,14 +124,23 @@ def _thin(xy: np.ndarray, score: np.ndarray, d: float):
     return xy[kept], score[kept]
 
 
+def _surface_depths(scene, T_wc: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """The z-depths of the scene surface hit by the rays through level-0 pixels ``uv``, where they hit."""
+    if not len(uv):
+        return np.zeros(0)
+    X, _, hit = scene.raycast(T_wc, uv)
+    depth = se3.transform(se3.inv(T_wc), np.asarray(X, dtype=np.float64))[:, 2]  # z, whatever the raycaster gives
+    return depth[np.asarray(hit, dtype=bool) & (depth > 0)]
+
+
 def _surface_points(scene, T_wc: np.ndarray, xy: np.ndarray, L: int, half_patch: float, tol: float):
-    """World points hit by the rays through level-L pixels ``xy``, their depths, and whether the whole patch
-    around each lies on one plane: the rays through four corners symmetric about the centre on the normalised
-    image plane hit too, and the centre's inverse depth equals their mean within ``tol`` (inverse depth is
-    affine over the normalised image of a plane)."""
+    """World points hit by the rays through level-L pixels ``xy``, and whether the whole patch around each lies on
+    one plane: the rays through four corners symmetric about the centre on the normalised image plane hit too, and
+    the centre's inverse depth equals their mean within ``tol`` (inverse depth is affine over the normalised image
+    of a plane)."""
     n = len(xy)
     if not n:
-        return np.zeros((0, 3)), np.zeros(0), np.zeros(0, bool)
+        return np.zeros((0, 3)), np.zeros(0, bool)
     cam = scene.camera
     s = float(1 << L)
     uv = level_to_zero(xy, L)
@@ -144,4 +157,4 @@ def _surface_points(scene, T_wc: np.ndarray, xy: np.ndarray, L: int, half_patch:
         inv_c = 1.0 / depth[:n]
         inv_mean = (1.0 / depth[n:].reshape(n, 4)).mean(axis=1)
         planar = np.abs(inv_mean - inv_c) <= tol * inv_c
-    return X[:n], depth[:n], ok[:n] & corner_ok & planar
+    return X[:n], ok[:n] & corner_ok & planar
