@@ -2,6 +2,7 @@
 image, every suite scene validates (without rendering) and has what it is meant to stress, hashes of procedural
 scenes are unchanged."""
 
+import dataclasses
 import shutil
 
 import cv2
@@ -224,3 +225,6 @@ def test_bench_accuracy_on_the_15fps_scene(cfg, capsys):
     # A regression bound, far from today's figures (0.5 mm, all 270 frames correct): most frames stay correct.
     assert run.score.tracked_fraction > 0.9 and run.score.correct_fraction > 0.8
     assert "desk_table_15fps  sync" in capsys.readouterr().out
+    long_name = "/home/user/scenes/desk_table_15fps_through_a_wide_lens.yaml"  # a scene file's path
+    print_table([dataclasses.replace(run, scene=long_name)], cfg)
+    assert f"{long_name}  sync" in capsys.readouterr().out

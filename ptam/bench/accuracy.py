@@ -34,6 +34,7 @@ SUITE_NAME = "suite"
 MODES = (RunMode.SYNC, RunMode.ASYNC, RunMode.REALTIME)
 _MM = 1e3
 _PERCENT = 100.0
+SCENE_COLUMN = 18  # characters: the suite's names and a gap
 _P95 = 95.0
 
 
@@ -110,13 +111,13 @@ def run_accuracy(cfg, scene: str, mode: RunMode) -> AccuracyRun:
     return AccuracyRun(scene, mode, system.stats.frames, score, dropped, init_frame, first_pose, med, p95, kfs, wall)
 
 
-def _row(r: AccuracyRun) -> str:
+def _row(r: AccuracyRun, width: int = SCENE_COLUMN) -> str:
     f = r.fields()
     dropped = "-" if r.dropped is None else str(r.dropped)
     init = "never" if r.init_frame is None else str(r.init_frame)
     pose = "never" if r.first_pose is None else str(r.first_pose)
     return (
-        f"{r.scene:<18}{f['mode']:<10}{f['ate_mm']:>9.1f}{f['rot_rmse_deg']:>9.2f}"
+        f"{r.scene:<{width}}{f['mode']:<10}{f['ate_mm']:>9.1f}{f['rot_rmse_deg']:>9.2f}"
         f"{_PERCENT * f['tracked_fraction']:>9.1f}{_PERCENT * f['correct_fraction']:>9.1f}{f['glitches']:>9d}"
         f"{dropped:>9}{init:>7}{pose:>7}{f['track_ms_median']:>8.1f}{f['track_ms_p95']:>8.1f}{r.keyframes:>5d}"
     )
@@ -139,12 +140,13 @@ def print_table(runs: list[AccuracyRun], cfg, out=print) -> None:
         f"outside that; init = frame at which the map was initialised; pose = first frame given a pose live; "
         f"ms = tracker per frame)"
     )
+    width = max([SCENE_COLUMN] + [len(r.scene) + 2 for r in runs])  # a scene file's path may be long
     out(
-        f"{'scene':<18}{'mode':<10}{'ATE mm':>9}{'rot deg':>9}{'track %':>9}{'correct%':>9}{'glitches':>9}"
+        f"{'scene':<{width}}{'mode':<10}{'ATE mm':>9}{'rot deg':>9}{'track %':>9}{'correct%':>9}{'glitches':>9}"
         f"{'dropped':>9}{'init':>7}{'pose':>7}{'med ms':>8}{'p95 ms':>8}{'kfs':>5}"
     )
     for r in runs:
-        out(_row(r))
+        out(_row(r, width))
 
 
 def run_accuracy_benchmark(cfg, scene: str = SUITE_NAME, out=print) -> list[AccuracyRun]:
