@@ -9,10 +9,12 @@ from __future__ import annotations
 import io
 import zipfile
 
+import cv2
 import numpy as np
 import pytest
 
 from ptam.camera import camera_from_dict
+from ptam.camera.camera_file import save_camera
 from ptam.cli import main as cli_main
 from ptam.errors import InputError
 from ptam.image.pyramid import Pyramid
@@ -210,3 +212,20 @@ def test_run_with_a_corrupt_map_exits_2_with_one_line(good, tmp_path, capsys):
         f"ptam: error: map file {path}: 'source_level' holds pyramid level 9; the map's pyramid has levels 0..3"
     ]
     assert "Traceback" not in err
+
+
+def test_run_with_a_map_from_another_image_size_exits_2_with_one_line(good, tmp_path, capsys):
+    """The keyframes' images, patches and relocalisation descriptors are at the map's size: a camera with other
+    frames cannot track against them (it once failed inside the relocaliser with a traceback)."""
+    dataset = tmp_path / "dataset"
+    dataset.mkdir()
+    rng = np.random.default_rng(1)
+    for i in range(3):
+        cv2.imwrite(str(dataset / f"{i:06d}.png"), rng.integers(0, 256, (2 * H, 2 * W), dtype=np.uint8))
+    big = dict(CAMERA, width=2 * W, height=2 * H, fx=160.0, fy=160.0, cx=95.5, cy=63.5)
+    save_camera(camera_from_dict(big), dataset / "camera.yaml")
+    code = cli_main(["run", "--dataset", str(dataset), "--no-viewer", "--fps", "30", "--load-map", str(good)])
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err
+    assert err.splitlines()[-1].startswith(f"ptam: error: the map was built from {W}x{H} images but ")
+    assert err.splitlines()[-1].endswith(f"delivers {2 * W}x{2 * H}; build a new map for this camera")

@@ -25,17 +25,16 @@ from pathlib import Path
 
 import numpy as np
 
-from ..camera import load_camera
 from ..capture import find_calibration, open_source
 from ..capture.keys import TerminalKeys
 from ..capture.realtime import RealtimeFeed
 from ..errors import InputError, PtamError
 from ..eval.correctness import Criteria
 from ..eval.score import score_trajectory
-from ..image.pyramid import Pyramid
 from ..map.map_file import load_map
 from ..system import System
 from ..vocabulary import ArScene, InitMode, RunMode, TrackingState
+from .run_camera import run_camera
 from .run_outputs import RunOutputs, check_output_paths, finish_video
 from .run_progress import Display
 from .run_summary import print_summary
@@ -54,8 +53,6 @@ AR_KEYS_HELP = (
 )
 
 STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
-
-log = logging.getLogger("ptam")
 
 
 def _init_frames(text: str | None):
@@ -93,18 +90,7 @@ def _open(args, cfg, map_camera):
     )
     try:
         calibration = args.calibration or (find_calibration(dataset) if dataset else None)
-        if calibration is None and map_camera is None:
-            raise InputError("no calibration: pass --calibration camera.yaml")
-        camera = load_camera(calibration) if calibration else map_camera
-        if camera.size != source.size:
-            where = f"calibration {calibration}" if calibration else "the map's camera"
-            raise InputError(
-                f"{where} is for {camera.width}x{camera.height} images but "
-                f"{source.name} delivers {source.size[0]}x{source.size[1]}"
-            )
-        Pyramid.build(np.zeros((camera.height, camera.width), np.uint8), cfg.image)  # frames fit the pyramid
-        if map_camera is not None and camera.to_dict() != map_camera.to_dict():
-            log.warning("the calibration differs from the camera the map was built with; tracking uses %s", calibration)
+        camera = run_camera(calibration, map_camera, source, cfg.image)
     except BaseException:
         source.close()
         raise
