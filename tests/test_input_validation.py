@@ -217,3 +217,18 @@ def test_trajectory_timestamps_must_increase(tmp_path, capsys):
     write_tum(tmp_path / "dup.txt", np.r_[t[:3], t[2:]], np.r_[T[:3], T[2:]])
     with pytest.raises(InputError, match=rf"dup.txt:5: timestamp {t[2]:.9f} is not after the previous pose's"):
         read_tum(tmp_path / "dup.txt")
+
+
+def test_a_frame_of_another_size_than_the_camera_is_refused(tmp_path):
+    """The library's ``System.process`` (the command line checks the source's size against the calibration first):
+    a frame of another size would be tracked through the wrong intrinsics."""
+    from ptam.capture.frame import Frame
+    from ptam.system import System
+
+    (tmp_path / "camera.yaml").write_text(CAMERA_YAML)
+    camera = load_camera(tmp_path / "camera.yaml")
+    image = np.random.default_rng(0).integers(0, 256, (2 * H, 2 * W), dtype=np.uint8)
+    with System(camera, load_config(), mode="sync") as system:
+        with pytest.raises(InputError, match=rf"^frame 7 is {2 * W}x{2 * H} but the camera is {W}x{H}$"):
+            system.process(Frame(7, 0.25, image))
+        assert system.process(Frame(8, 0.3, image[:H, :W].copy())).state.name == "INITIALISING"

@@ -33,6 +33,7 @@ from ..camera import load_camera
 from ..camera.model import CameraModel
 from ..capture import open_dataset
 from ..config import Config
+from ..errors import InputError
 from ..geometry import se3
 from ..image.pyramid import Pyramid
 from ..map.map import Map
@@ -212,6 +213,11 @@ class System(Initialisation, KeyframePolicy, Tracks):
 
     # -- per frame -----------------------------------------------------------------------------------------
     def process(self, frame) -> FrameOutcome:
+        if frame.image.shape[:2] != (self.camera.height, self.camera.width):
+            h, w = frame.image.shape[:2]
+            raise InputError(
+                f"frame {frame.index} is {w}x{h} but the camera is {self.camera.width}x{self.camera.height}"
+            )
         self._check_mapper()
         t0 = time.perf_counter()
         self.stats.frames += 1
