@@ -170,6 +170,20 @@ def test_score_trajectory_with_and_without_criteria(tmp_path):
     assert (empty.matched, empty.correct, empty.glitches) == (0, 0, 0) and np.isnan(empty.rot_rmse_deg)
 
 
+def test_a_run_that_never_built_a_map_scores_without_an_ate(tmp_path):
+    """Poses reported before the map exists are rotation-only at its origin: no scale fits them, so there is no
+    ATE (it raised, and stopped ``ptam bench accuracy`` on a scene that never initialised), and no frame is
+    counted correct or as a glitch."""
+    t, T_gt = ground_truth()
+    gt_file = tmp_path / "gt.txt"
+    write_tum(gt_file, t, T_gt)
+    at_origin = to_map(T_gt)
+    at_origin[:, :3, 3] = 0.0
+    s = score_trajectory(gt_file, [(float(t[i]), at_origin[i]) for i in range(40)], criteria=CRIT)
+    assert (s.matched, s.correct, s.glitches) == (40, 0, 0) and s.tracked_fraction == pytest.approx(0.4)
+    assert np.isnan(s.ate_rmse_m) and np.isnan(s.rot_rmse_deg)
+
+
 def test_ptam_eval_prints_rotation_correctness_and_glitches(tmp_path, capsys):
     t, T_gt = ground_truth()
     gt_file, est_file = tmp_path / "gt.txt", tmp_path / "est.txt"

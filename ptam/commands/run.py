@@ -29,6 +29,7 @@ from ..capture import find_calibration, open_source
 from ..capture.keys import TerminalKeys
 from ..capture.realtime import RealtimeFeed
 from ..errors import InputError, PtamError
+from ..eval.ate import MIN_POSES
 from ..eval.correctness import Criteria
 from ..eval.score import score_trajectory
 from ..map.map_file import load_map
@@ -134,6 +135,7 @@ def _score(dataset: str | None, system: System, embedded: bool, cfg) -> None:
         print(f"ptam: not scored against {gt}: {e}", file=sys.stderr)
         return
     if not np.isfinite(r.ate_rmse_m):
+        print(f"ptam: not scored against {gt}: fewer than {MIN_POSES} tracked poses in 3-D", file=sys.stderr)
         return
     paper = f" (PTAM §7.3 reports {PAPER_ATE_MM:g} mm on its two-wall sequence)" if embedded else ""
     print(

@@ -36,7 +36,9 @@ class Score:
 
 def score_trajectory(groundtruth, trajectory, max_dt: float = 0.01, criteria: Criteria | None = None) -> Score:
     """``trajectory``: a list of (timestamp, T_wc) pairs, as ``System.trajectory``. ATE and rotation RMSE are NaN
-    with fewer than MIN_POSES matched poses; correct and glitch frames are counted only with ``criteria``."""
+    with fewer than MIN_POSES matched poses, or when they all sit at one position (only poses from before the map,
+    rotation-only at its origin: no scale can be fitted); correct and glitch frames are counted only with
+    ``criteria``."""
     t_gt, T_gt = read_tum(groundtruth)
     length = float(np.linalg.norm(np.diff(T_gt[:, :3, 3], axis=0), axis=1).sum()) if len(T_gt) > 1 else 0.0
     zero = None if criteria is None else 0
@@ -46,7 +48,7 @@ def score_trajectory(groundtruth, trajectory, max_dt: float = 0.01, criteria: Cr
     T = np.array([p[1] for p in trajectory])
     ig, ie = associate(t_gt, t, max_dt)
     rmse = rot = float("nan")
-    if len(ig) >= MIN_POSES:
+    if len(ig) >= MIN_POSES and np.any(T[ie, :3, 3] != T[ie[0], :3, 3]):
         res = ate(T_gt[ig, :3, 3], T[ie, :3, 3])
         rmse, rot = res.rmse, rot_rmse_deg(T_gt[ig], T[ie], res.R)
     if criteria is None:
