@@ -5,7 +5,9 @@ import os
 import cv2
 import numpy as np
 import pytest
+import yaml
 
+from ptam.camera import camera_from_dict, load_camera
 from ptam.capture import (
     Frame,
     find_calibration,
@@ -194,6 +196,60 @@ def test_euroc_dataset_from_root_mav0_or_cam0(tmp_path):
     (cam0 / "data.csv").write_text("\n".join(rows) + "\n12x,a.png\n")
     with pytest.raises(InputError, match=r"data.csv:6: expected 'timestamp_ns,filename'"):
         open_dataset(str(tmp_path), capture().default_fps)
+
+
+# MH_01_easy's mav0/cam0/sensor.yaml as EuRoC ships it (Kalibr's fields), the extrinsics shortened.
+EUROC_SENSOR_YAML = """# General sensor definitions.
+sensor_type: camera
+comment: VI-Sensor cam0 (MT9M034)
+T_BS:
+  cols: 4
+  rows: 4
+  data: [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]
+rate_hz: 20
+resolution: [752, 480]
+camera_model: pinhole
+intrinsics: [458.654, 457.296, 367.215, 248.375] #fu, fv, cu, cv
+distortion_model: radial-tangential
+distortion_coefficients: [-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05]
+"""
+
+
+def test_a_euroc_dataset_brings_its_calibration(tmp_path):
+    """``ptam run --dataset`` on a EuRoC sequence needs no camera.yaml: cam0/sensor.yaml is the camera, the same
+    as the camera.yaml a user would have written from it."""
+    cam0 = tmp_path / "mav0" / "cam0"
+    (cam0 / "data").mkdir(parents=True)
+    (cam0 / "data.csv").write_text("#timestamp [ns],filename\n")
+    (cam0 / "sensor.yaml").write_text(EUROC_SENSOR_YAML)
+    for d in (tmp_path, tmp_path / "mav0", cam0):
+        assert find_calibration(str(d)) == str(cam0 / "sensor.yaml")
+    cam = load_camera(cam0 / "sensor.yaml")
+    by_hand = camera_from_dict(
+        {
+            "model": "radtan",
+            "width": 752,
+            "height": 480,
+            "fx": 458.654,
+            "fy": 457.296,
+            "cx": 367.215,
+            "cy": 248.375,
+            "k1": -0.28340811,
+            "k2": 0.07395907,
+            "p1": 0.00019359,
+            "p2": 1.76187114e-05,
+        }
+    )
+    assert cam.to_dict() == by_hand.to_dict()
+    X = np.random.default_rng(5).uniform([-1.0, -0.7, 1.0], [1.0, 0.7, 3.0], (50, 3))
+    np.testing.assert_allclose(cam.project(X), by_hand.project(X), rtol=0, atol=1e-12)  # px
+    (tmp_path / "camera.yaml").write_text("model: pinhole\n")
+    assert find_calibration(str(tmp_path)) == str(tmp_path / "camera.yaml")  # the user's own file comes first
+    fisheye = EUROC_SENSOR_YAML.replace("radial-tangential", "equidistant")
+    with pytest.raises(InputError, match="distortion_model 'equidistant' is not supported"):
+        camera_from_dict(yaml.safe_load(fisheye))
+    with pytest.raises(InputError, match="'intrinsics' must be a list of 4 numbers"):
+        camera_from_dict(yaml.safe_load(EUROC_SENSOR_YAML.replace(", 248.375]", "]")))
 
 
 def test_parse_size_and_source_choice():

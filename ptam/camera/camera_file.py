@@ -13,7 +13,10 @@ Accepted layout (pixel units, pixel centres at integer coordinates)::
     k1: 0.0               # radtan only: k1 k2 p1 p2 k3 (OpenCV order)
 
 PTAM's own normalised 5-vector is accepted too (``ptam: [fx/W, fy/H, cx/W, cy/H, omega]``, with
-cx_px = W·p − 0.5), so calibrations made with PTAM's CameraCalibrator can be reused.
+cx_px = W·p − 0.5), so calibrations made with PTAM's CameraCalibrator can be reused. So is the EuRoC dataset's
+``cam0/sensor.yaml`` (Kalibr's fields: ``resolution: [W, H]``, ``intrinsics: [fu, fv, cu, cv]``, a pinhole
+``camera_model``, ``distortion_model: radial-tangential`` with ``distortion_coefficients: [k1, k2, p1, p2]``),
+whose pixel convention is ptam's.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from .radtan import RadTanCamera
 
 _MODELS = {"fov": FovCamera, "pinhole": PinholeCamera, "radtan": RadTanCamera}
 _DISTORTION_KEYS = {"fov": ("omega",), "pinhole": (), "radtan": ("k1", "k2", "p1", "p2", "k3")}
+_KALIBR_LENSES = {"radial-tangential": "radtan", "radtan": "radtan", "none": "pinhole"}
 
 
 def _number(d: dict, key: str, where: str) -> float:
@@ -43,10 +47,35 @@ def _number(d: dict, key: str, where: str) -> float:
     return float(v)
 
 
+def _numbers(d: dict, key: str, where: str, n: tuple[int, ...]) -> list[float]:
+    v = d.get(key)
+    if not isinstance(v, (list, tuple)) or len(v) not in n:
+        raise InputError(f"{where}: '{key}' must be a list of {' or '.join(map(str, n))} numbers")
+    return [_number({key: x}, key, where) for x in v]
+
+
+def _kalibr_layout(d: dict, where: str) -> dict:
+    """A EuRoC ``sensor.yaml`` (Kalibr's camera fields) as a camera.yaml mapping."""
+    if d.get("camera_model") != "pinhole":
+        raise InputError(f"{where}: camera_model '{d.get('camera_model')}' is not supported (pinhole only)")
+    lens = d.get("distortion_model", "none")
+    if lens not in _KALIBR_LENSES:
+        raise InputError(f"{where}: distortion_model '{lens}' is not supported ({', '.join(_KALIBR_LENSES)})")
+    width, height = _numbers(d, "resolution", where, (2,))
+    fx, fy, cx, cy = _numbers(d, "intrinsics", where, (4,))
+    out = {"model": _KALIBR_LENSES[lens], "width": width, "height": height, "fx": fx, "fy": fy, "cx": cx, "cy": cy}
+    if out["model"] == "radtan":
+        key = "distortion_coefficients" if "distortion_coefficients" in d else "distortion_coeffs"
+        out.update(zip(_DISTORTION_KEYS["radtan"], _numbers(d, key, where, (4, 5))))
+    return out
+
+
 def camera_from_dict(d: dict, where: str = "camera") -> CameraModel:
-    """Build and validate a camera model from a camera.yaml mapping."""
+    """Build and validate a camera model from a camera.yaml mapping (or a EuRoC sensor.yaml's)."""
     if not isinstance(d, dict):
         raise InputError(f"{where}: expected a mapping of camera parameters")
+    if "intrinsics" in d:
+        d = _kalibr_layout(d, where)
     model = d.get("model", "fov" if "ptam" in d or "omega" in d else "pinhole")
     if model not in _MODELS:
         raise InputError(f"{where}: unknown camera model '{model}' (expected one of {', '.join(_MODELS)})")

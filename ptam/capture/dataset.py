@@ -11,6 +11,7 @@ from .images import ImageSequence
 from .tum import INDEX_FILE, open_tum
 
 CALIBRATION_FILE = "camera.yaml"
+EUROC_CALIBRATION_FILE = "sensor.yaml"  # beside cam0's data.csv
 
 
 def dataset_kind(directory: str) -> str:
@@ -37,6 +38,10 @@ def open_dataset(directory: str | os.PathLike, fps: float) -> ImageSequence:
 
 
 def find_calibration(directory: str) -> str | None:
-    """``DIR/camera.yaml`` if the dataset ships one."""
+    """``DIR/camera.yaml`` if the dataset ships one, else a EuRoC dataset's ``cam0/sensor.yaml``."""
     path = os.path.join(directory, CALIBRATION_FILE)
-    return path if os.path.isfile(path) else None
+    if os.path.isfile(path):
+        return path
+    cam0 = find_cam0(directory) if os.path.isdir(directory) else None
+    sensor = None if cam0 is None else os.path.join(cam0, EUROC_CALIBRATION_FILE)
+    return sensor if sensor is not None and os.path.isfile(sensor) else None
