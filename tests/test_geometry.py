@@ -47,6 +47,15 @@ def test_single_elements_match_the_batched_maps(angle):
         assert np.abs(se3.log(T[i]) - se3.log(pair)[0]).max() < 1e-13
 
 
+@pytest.mark.parametrize("angle", [0.0, 1e-9, 1e-3, 1e-2, 0.5, 3.0, np.pi])
+def test_the_left_update_kernel_matches_the_batched_map(angle):
+    """``se3.exp_left`` (one kernel call, the bundle adjuster's pose update) against ``se3.exp(mu) @ T``."""
+    mu = np.concatenate([RNG.normal(scale=0.3, size=(30, 3)), _random_axes(30) * angle], axis=1)
+    T = se3.exp(np.concatenate([RNG.normal(size=(30, 3)), _random_axes(30) * 2.0], axis=1))
+    assert np.abs(se3.exp_left(mu, T) - se3.exp(mu) @ T).max() < 1e-14
+    assert se3.exp_left(np.zeros((0, 6)), np.zeros((0, 4, 4))).shape == (0, 4, 4)
+
+
 @pytest.mark.parametrize("angle", [0.0, 1e-9, 1e-4, 1.0, 3.0, np.pi - 1e-7])
 def test_se3_exp_log_round_trip(angle):
     mu = np.concatenate([RNG.normal(size=(50, 3)) * 2.0, _random_axes(50) * angle], axis=1)

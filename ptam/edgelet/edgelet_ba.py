@@ -90,7 +90,7 @@ def _line_normals(obs: EdgeletObservations) -> np.ndarray:
 
 def update_poses(poses: np.ndarray, mu: np.ndarray) -> np.ndarray:
     """T ← exp(μ) T for keyframe poses (K, 4, 4) and updates (K, 6): the parametrisation of ``J_pose``."""
-    return se3.exp(np.asarray(mu, dtype=np.float64)) @ np.asarray(poses, dtype=np.float64)
+    return se3.exp_left(mu, poses)
 
 
 def refine_edgelets(

@@ -135,3 +135,14 @@ def se3_log_one(T):
         mu[r] = v
         mu[3 + r] = w[r]
     return mu
+
+
+@njit(nogil=True, cache=True)
+def se3_exp_left(mu, T, out):
+    """out[i] = exp(μ_i)·T[i] for μ (N, 6) and T (N, 4, 4): PTAM's left-multiplied update of N poses, one at a
+    time (``se3.exp(mu) @ T``, whose numpy batch costs about 0.2 ms for a handful of poses)."""
+    for i in range(mu.shape[0]):
+        E = se3_exp_one(mu[i])
+        for r in range(4):
+            for c in range(4):
+                out[i, r, c] = E[r, 0] * T[i, 0, c] + E[r, 1] * T[i, 1, c] + E[r, 2] * T[i, 2, c] + E[r, 3] * T[i, 3, c]

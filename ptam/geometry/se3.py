@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import so3
-from .lie_one_kernels import se3_exp_one, se3_log_one
+from .lie_one_kernels import se3_exp_left, se3_exp_one, se3_log_one
 
 
 def exp(mu: np.ndarray) -> np.ndarray:
@@ -22,6 +22,15 @@ def exp(mu: np.ndarray) -> np.ndarray:
     T[..., :3, 3] = np.einsum("...ij,...j->...i", so3.left_jacobian(w), v)
     T[..., 3, 3] = 1.0
     return T
+
+
+def exp_left(mu: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """exp(μ_i)·T_i for updates μ (N, 6) and poses T (N, 4, 4): the pose update, in one kernel call."""
+    mu = np.ascontiguousarray(mu, dtype=np.float64).reshape(-1, 6)
+    T = np.ascontiguousarray(T, dtype=np.float64).reshape(-1, 4, 4)
+    out = np.empty_like(T)
+    se3_exp_left(mu, T, out)
+    return out
 
 
 def log(T: np.ndarray) -> np.ndarray:

@@ -282,7 +282,7 @@ class Bundle:
         st = s.st
         dcam, dpts, dedg = step
         P_new = s.P.copy()
-        P_new[s.free_idx] = se3.exp(dcam.reshape(-1, 6)) @ s.P[s.free_idx]
+        P_new[s.free_idx] = se3.exp_left(dcam, s.P[s.free_idx])
         X_new = s.X + dpts
         ba_residuals(self._cam, P_new, X_new, st.mcam, st.mpt, s.uv, s.inv_sigma, s.live, s.err, s.e2, s.bad)
         F_new, edg_cost = s.edg.trial(P_new, dedg, s.c2)
