@@ -252,6 +252,41 @@ def test_a_euroc_dataset_brings_its_calibration(tmp_path):
         camera_from_dict(yaml.safe_load(EUROC_SENSOR_YAML.replace(", 248.375]", "]")))
 
 
+def test_a_euroc_dataset_brings_its_ground_truth(tmp_path):
+    """The body poses of ``state_groundtruth_estimate0/data.csv`` (quaternion w first, nanoseconds) taken to the
+    camera by cam0's ``T_BS``: the camera-to-world poses ``ptam run`` is scored against."""
+    from ptam.capture import find_groundtruth
+    from ptam.geometry import se3, so3
+
+    rng = np.random.default_rng(6)
+    T_BS = se3.exp(np.r_[-0.02, -0.06, 0.01, 0.0, 0.0, 1.55])  # about EuRoC's: a quarter turn, centimetres off
+    T_WC = se3.exp(np.c_[rng.normal(scale=0.5, size=(30, 3)), rng.normal(scale=0.8, size=(30, 3))])
+    T_WB = T_WC @ se3.inv(T_BS)
+    ns = 1403636579758555392 + np.arange(30, dtype=np.int64) * 5_000_000
+    q = so3.to_quaternion(T_WB[:, :3, :3])  # (x, y, z, w)
+    rows = ["#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], q_RS_z [], ..."]
+    for t, T, qi in zip(ns, T_WB, q):
+        values = [*T[:3, 3], qi[3], *qi[:3], *rng.normal(size=9)]  # velocities and biases follow the pose
+        rows.append(f"{t}," + ",".join(repr(float(v)) for v in values))
+    mav0 = tmp_path / "mav0"
+    (mav0 / "cam0" / "data").mkdir(parents=True)
+    (mav0 / "cam0" / "data.csv").write_text("#timestamp [ns],filename\n")
+    (mav0 / "state_groundtruth_estimate0").mkdir()
+    (mav0 / "state_groundtruth_estimate0" / "data.csv").write_text("\n".join(rows) + "\n")
+    sensor = yaml.safe_load(EUROC_SENSOR_YAML)
+    sensor["T_BS"]["data"] = T_BS.reshape(-1).tolist()
+    (mav0 / "cam0" / "sensor.yaml").write_text(yaml.safe_dump(sensor))
+    for d in (tmp_path, mav0, mav0 / "cam0"):
+        path, t, T = find_groundtruth(str(d))
+        assert path.endswith("state_groundtruth_estimate0/data.csv")
+        assert np.abs(t - (1403636579.758555392 + 0.005 * np.arange(30))).max() < 1e-6
+        assert np.abs(T - T_WC).max() < 1e-12
+    (mav0 / "state_groundtruth_estimate0" / "data.csv").write_text(rows[0] + "\n1,2,3\n")
+    with pytest.raises(InputError, match=r"data.csv:2: expected 'timestamp_ns,px,py,pz,qw,qx,qy,qz"):
+        find_groundtruth(str(tmp_path))
+    assert find_groundtruth(str(tmp_path / "mav0" / "cam0" / "data")) is None  # no dataset there
+
+
 def test_parse_size_and_source_choice():
     assert parse_size("640x480") == (640, 480)
     assert parse_size([320, 240]) == (320, 240)

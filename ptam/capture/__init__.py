@@ -1,7 +1,7 @@
 """Frame sources: video files, live v4l2 and FireWire IIDC (dc1394) cameras, image folders, TUM RGB-D and EuRoC
 datasets."""
 
-from .dataset import find_calibration, open_dataset
+from .dataset import find_calibration, find_groundtruth, open_dataset
 from .dc1394 import Dc1394Source
 from .euroc import open_euroc
 from .folder import open_folder
@@ -26,5 +26,6 @@ __all__ = [
     "open_tum",
     "open_euroc",
     "find_calibration",
+    "find_groundtruth",
     "parse_size",
 ]

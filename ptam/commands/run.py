@@ -11,7 +11,8 @@ Ctrl-C, SIGTERM, SIGHUP and on errors alike (a camera that disappears, a truncat
 printed. An output that still cannot be written does not stop the others: exit 2 after the summary, one line
 naming it. ``--load-map`` starts from a saved map;
 ``--localize-only`` tracks against it without mapping. A dataset that carries ``groundtruth.txt`` (TUM layout,
-e.g. from ``ptam synth``) is also scored: ATE after Sim(3) alignment, next to PTAM's 6 mm on its two-wall sequence.
+e.g. from ``ptam synth``) or EuRoC's ground truth is also scored: ATE after Sim(3) alignment, next to PTAM's 6 mm
+on its two-wall sequence.
 """
 
 from __future__ import annotations
@@ -21,17 +22,16 @@ import signal
 import sys
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 
-from ..capture import find_calibration, open_source
+from ..capture import find_calibration, find_groundtruth, open_source
 from ..capture.keys import TerminalKeys
 from ..capture.realtime import RealtimeFeed
 from ..errors import InputError, PtamError
 from ..eval.ate import MIN_POSES
 from ..eval.correctness import Criteria
-from ..eval.score import score_trajectory
+from ..eval.score import score_poses
 from ..map.map_file import load_map
 from ..system import System
 from ..vocabulary import ArScene, InitMode, RunMode, TrackingState
@@ -126,13 +126,14 @@ def _open_recording(args, cfg, live: bool):
 
 
 def _score(dataset: str | None, system: System, embedded: bool, cfg) -> None:
-    gt = Path(dataset) / "groundtruth.txt" if dataset else None
-    if gt is None or not gt.is_file():
-        return
     try:
-        r = score_trajectory(gt, system.trajectory, criteria=Criteria.from_config(cfg.eval))
+        found = find_groundtruth(dataset) if dataset else None
+        if found is None:
+            return
+        gt, t_gt, T_gt = found
+        r = score_poses(t_gt, T_gt, system.trajectory, criteria=Criteria.from_config(cfg.eval))
     except PtamError as e:  # a ground truth that cannot score the run does not fail a run that worked
-        print(f"ptam: not scored against {gt}: {e}", file=sys.stderr)
+        print(f"ptam: not scored against the dataset's ground truth: {e}", file=sys.stderr)
         return
     if not np.isfinite(r.ate_rmse_m):
         print(f"ptam: not scored against {gt}: fewer than {MIN_POSES} tracked poses in 3-D", file=sys.stderr)

@@ -35,11 +35,15 @@ class Score:
 
 
 def score_trajectory(groundtruth, trajectory, max_dt: float = 0.01, criteria: Criteria | None = None) -> Score:
-    """``trajectory``: a list of (timestamp, T_wc) pairs, as ``System.trajectory``. ATE and rotation RMSE are NaN
-    with fewer than MIN_POSES matched poses, or when they all sit at one position (only poses from before the map,
-    rotation-only at its origin: no scale can be fitted); correct and glitch frames are counted only with
-    ``criteria``."""
-    t_gt, T_gt = read_tum(groundtruth)
+    """``score_poses`` against a ground-truth TUM file."""
+    return score_poses(*read_tum(groundtruth), trajectory, max_dt, criteria)
+
+
+def score_poses(t_gt, T_gt, trajectory, max_dt: float = 0.01, criteria: Criteria | None = None) -> Score:
+    """``trajectory``: a list of (timestamp, T_wc) pairs, as ``System.trajectory``, against ground-truth
+    camera-to-world poses ``T_gt`` (N, 4, 4) at ``t_gt`` (N,) s. ATE and rotation RMSE are NaN with fewer than
+    MIN_POSES matched poses, or when they all sit at one position (only poses from before the map, rotation-only at
+    its origin: no scale can be fitted); correct and glitch frames are counted only with ``criteria``."""
     length = float(np.linalg.norm(np.diff(T_gt[:, :3, 3], axis=0), axis=1).sum()) if len(T_gt) > 1 else 0.0
     zero = None if criteria is None else 0
     if len(trajectory) == 0:
