@@ -50,9 +50,13 @@ def read_data_csv(path: str) -> tuple[np.ndarray, list[str]]:
         raise InputError(f"{path}: lists no images")
     ns = np.array(ns, dtype=np.int64)
     check_increasing(path, ns, linenos)  # in integer nanoseconds: exact, before any float conversion
-    # Split whole seconds from the remainder so the float conversion keeps every nanosecond it can.
-    stamps = (ns // _NS_PER_S).astype(np.float64) + (ns % _NS_PER_S) / _NS_PER_S
-    return stamps, paths
+    return seconds(ns), paths
+
+
+def seconds(ns: np.ndarray) -> np.ndarray:
+    """EuRoC's integer nanosecond stamps in seconds: whole seconds split from the remainder, so that the float
+    conversion keeps every nanosecond it can."""
+    return (ns // _NS_PER_S).astype(np.float64) + (ns % _NS_PER_S) / _NS_PER_S
 
 
 def open_euroc(directory: str, fallback_fps: float) -> ImageSequence:

@@ -12,11 +12,10 @@ import yaml
 
 from ..errors import InputError
 from ..geometry import so3
-from .euroc import find_cam0
+from .euroc import find_cam0, seconds
 from .images import check_increasing
 
 GROUNDTRUTH_CSV = os.path.join("state_groundtruth_estimate0", "data.csv")  # beside cam0 in mav0
-_NS_PER_S = 1_000_000_000
 _POSE_FIELDS = 8  # timestamp, p_RS_R x y z, q_RS w x y z
 
 
@@ -77,5 +76,4 @@ def read_euroc_groundtruth(path: str, T_BS: np.ndarray) -> tuple[np.ndarray, np.
     T_WB[:, :3, :3] = so3.from_quaternion(data[:, [4, 5, 6, 3]])  # (x, y, z, w)
     T_WB[:, :3, 3] = data[:, :3]
     T_WB[:, 3, 3] = 1.0
-    stamps = (stamps_ns // _NS_PER_S).astype(np.float64) + (stamps_ns % _NS_PER_S) / _NS_PER_S
-    return stamps, T_WB @ T_BS
+    return seconds(stamps_ns), T_WB @ T_BS
