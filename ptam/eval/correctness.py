@@ -24,13 +24,19 @@ fit on all comes first): a loose gate finds the inliers, the judged thresholds p
 Without outliers the fit on all wins and its re-fit changes nothing; with a few outliers the re-fit leaves them
 out; with a broken map the largest set of frames one similarity makes right is what is judged correct (if a
 map breaks into two self-consistent parts, the larger part counts as right and the other as glitches). Parts
-with fewer than ``MIN_POSES`` frames or a single repeated position give no candidate, and the re-fit is
-skipped when the support is such a set (the winning candidate then stands).
+with fewer than ``MIN_POSES`` frames give no candidate, nor a position fit where the positions are one point, and
+the re-fit is skipped when the support is such a set (the winning candidate then stands).
 
 Positions alone leave the alignment's rotation undetermined when they lie on a line or at one point, which is
 what a camera that mostly rotates in place gives (a panorama, Gauglitz et al. TVCG 2013). So every part also
 gives an orientation-anchored candidate: the rotation is the chordal mean of R_gt·R_estᵀ over its frames, and
 scale and translation are then the least-squares fit of the positions. Both kinds compete on the same terms.
+
+A trajectory whose positions are all one point (a run that only tracked rotation-only poses, before any map)
+has no scale to fit, but it still claims that the camera stayed where it was: the orientation-anchored fit puts
+that point at the true positions' mean, so each frame is judged by how far the camera really was from there and
+by its orientation. Where the camera did stay put, the frames are correct; where it moved, or where the
+rotation-only tracker turned the wrong way, they are glitches.
 """
 
 from __future__ import annotations
@@ -91,8 +97,8 @@ class Correctness:
         return self.correct / max(self.n_groundtruth, 1)
 
 
-def _degenerate(est_xyz: np.ndarray) -> bool:
-    return len(est_xyz) < MIN_POSES or not np.any(est_xyz != est_xyz[0])
+def _one_point(est_xyz: np.ndarray) -> bool:
+    return not np.any(est_xyz != est_xyz[0])
 
 
 def _parts(n: int, segments: int) -> list[tuple[int, int]]:
@@ -105,8 +111,8 @@ def _parts(n: int, segments: int) -> list[tuple[int, int]]:
 
 
 def fit_sim3(T_gt: np.ndarray, T_est: np.ndarray, criteria: Criteria) -> Sim3Fit:
-    """Sim(3) alignment of associated camera-to-world poses (N, 4, 4) in frame order, N ≥ MIN_POSES positions not
-    all one point: the candidate fit supported by the most frames, re-fitted once on those (module docstring)."""
+    """Sim(3) alignment of associated camera-to-world poses (N, 4, 4) in frame order, N ≥ MIN_POSES: the candidate
+    fit supported by the most frames, re-fitted once on those (module docstring)."""
     T_gt = np.asarray(T_gt, dtype=np.float64)
     T_est = np.asarray(T_est, dtype=np.float64)
     gt_xyz, est_xyz = T_gt[:, :3, 3], T_est[:, :3, 3]
@@ -133,19 +139,19 @@ def fit_sim3(T_gt: np.ndarray, T_est: np.ndarray, criteria: Criteria) -> Sim3Fit
         return orientation_fit(T_gt[sel], T_est[sel])
 
     for part in candidates:
-        if _degenerate(est_xyz[part]):
+        if part.sum() < MIN_POSES:
             continue
-        for method in (positions, orientations):
+        for method in (orientations,) if _one_point(est_xyz[part]) else (positions, orientations):
             fit = method(part)
             support = within(fit, gate_m, gate_deg)
             used = part
-            if not _degenerate(est_xyz[support]):  # re-fitted once on the frames it supports
-                fit, used = method(support), support
+            if support.sum() >= MIN_POSES and not (method is positions and _one_point(est_xyz[support])):
+                fit, used = method(support), support  # re-fitted once on the frames it supports
             # Candidates are judged by what is judged in the end: frames within the thresholds after the re-fit.
             correct = int(within(fit, criteria.max_error_m, criteria.max_error_deg).sum())
             if correct > best_correct:
                 best, best_correct = Sim3Fit(float(fit[0]), fit[1], fit[2], used), correct
-    assert best is not None  # the fit on all frames is never degenerate here
+    assert best is not None  # the fit on all frames is always a candidate here
     return best
 
 
@@ -188,7 +194,7 @@ def correctness(T_gt: np.ndarray, T_est: np.ndarray, n_groundtruth: int, criteri
     T_gt = np.asarray(T_gt, dtype=np.float64).reshape(-1, 4, 4)
     T_est = np.asarray(T_est, dtype=np.float64).reshape(-1, 4, 4)
     m = len(T_gt)
-    if _degenerate(T_est[:, :3, 3]):
+    if m < MIN_POSES:
         nan = np.full(m, np.nan)
         return Correctness(n_groundtruth, m, 0, 0, None, nan, nan)
     fit = fit_sim3(T_gt, T_est, criteria)
