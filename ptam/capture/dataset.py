@@ -46,8 +46,11 @@ def open_dataset(directory: str | os.PathLike, fps: float) -> ImageSequence:
 def find_calibration(directory: str) -> str | None:
     """``DIR/camera.yaml`` if the dataset ships one, else a EuRoC dataset's ``cam0/sensor.yaml``."""
     path = os.path.join(directory, CALIBRATION_FILE)
-    if os.path.isfile(path):
-        return path
+    return path if os.path.isfile(path) else _euroc_sensor(directory)
+
+
+def _euroc_sensor(directory: str) -> str | None:
+    """A EuRoC sequence's ``cam0/sensor.yaml``, if ``directory`` is one and it ships the file."""
     cam0 = find_cam0(directory) if os.path.isdir(directory) else None
     sensor = None if cam0 is None else os.path.join(cam0, EUROC_CALIBRATION_FILE)
     return sensor if sensor is not None and os.path.isfile(sensor) else None
@@ -63,6 +66,4 @@ def find_groundtruth(directory: str) -> tuple[str, np.ndarray, np.ndarray] | Non
     euroc = find_euroc_groundtruth(directory) if os.path.isdir(directory) else None
     if euroc is None:
         return None
-    cam0 = find_cam0(directory)
-    sensor = None if cam0 is None else os.path.join(cam0, EUROC_CALIBRATION_FILE)
-    return (euroc, *read_euroc_groundtruth(euroc, body_to_camera(sensor)))
+    return (euroc, *read_euroc_groundtruth(euroc, body_to_camera(_euroc_sensor(directory))))
