@@ -135,8 +135,12 @@ def _score(dataset: str | None, system: System, embedded: bool, cfg) -> None:
     except PtamError as e:  # a ground truth that cannot score the run does not fail a run that worked
         print(f"ptam: not scored against the dataset's ground truth: {e}", file=sys.stderr)
         return
-    if not np.isfinite(r.ate_rmse_m):
-        print(f"ptam: not scored against {gt}: fewer than {MIN_POSES} tracked poses in 3-D", file=sys.stderr)
+    if not np.isfinite(r.ate_rmse_m):  # rotation-only poses are still judged (``eval.correctness``)
+        print(
+            f"ptam: no ATE against {gt}: fewer than {MIN_POSES} tracked poses in 3-D; correct "
+            f"{100 * r.correct_fraction:.1f}%, glitch frames {r.glitches}",
+            file=sys.stderr,
+        )
         return
     paper = f" (PTAM §7.3 reports {PAPER_ATE_MM:g} mm on its two-wall sequence)" if embedded else ""
     print(
