@@ -17,8 +17,10 @@ from ptam.capture import (
     parse_size,
 )
 from ptam.capture.dataset import dataset_kind
+from ptam.cli import main as cli_main
 from ptam.config import default_config
 from ptam.errors import InputError
+from ptam.eval import write_tum as write_trajectory
 from tests.support import capture
 
 W, H = 64, 48
@@ -252,7 +254,7 @@ def test_a_euroc_dataset_brings_its_calibration(tmp_path):
         camera_from_dict(yaml.safe_load(EUROC_SENSOR_YAML.replace(", 248.375]", "]")))
 
 
-def test_a_euroc_dataset_brings_its_ground_truth(tmp_path):
+def test_a_euroc_dataset_brings_its_ground_truth(tmp_path, capsys):
     """The body poses of ``state_groundtruth_estimate0/data.csv`` (quaternion w first, nanoseconds) taken to the
     camera by cam0's ``T_BS``: the camera-to-world poses ``ptam run`` is scored against."""
     from ptam.capture import find_groundtruth
@@ -281,6 +283,19 @@ def test_a_euroc_dataset_brings_its_ground_truth(tmp_path):
         assert path.endswith("state_groundtruth_estimate0/data.csv")
         assert np.abs(t - (1403636579.758555392 + 0.005 * np.arange(30))).max() < 1e-6
         assert np.abs(T - T_WC).max() < 1e-12
+    # ptam eval takes the same file, and the camera's trajectory scores as the truth (T_BS ignored: about 89°).
+    est = tmp_path / "est.txt"
+    t = 1403636579.758555392 + 0.005 * np.arange(30)
+    write_trajectory(est, t, T_WC)
+    gt_csv = str(mav0 / "state_groundtruth_estimate0" / "data.csv")
+    assert cli_main(["eval", gt_csv, str(est)]) == 0
+    fields = dict(kv.split("=") for kv in capsys.readouterr().out.strip().splitlines()[-1].split())
+    assert float(fields["ate_rmse_m"]) < 1e-9 and float(fields["rot_rmse_deg"]) < 1e-6
+    (mav0 / "cam0" / "sensor.yaml").unlink()
+    assert cli_main(["eval", gt_csv, str(est)]) == 0
+    out = capsys.readouterr().out
+    assert "comparing with the body poses" in out
+    assert float(dict(kv.split("=") for kv in out.strip().splitlines()[-1].split())["rot_rmse_deg"]) > 80.0
     (mav0 / "state_groundtruth_estimate0" / "data.csv").write_text(rows[0] + "\n1,2,3\n")
     with pytest.raises(InputError, match=r"data.csv:2: expected 'timestamp_ns,px,py,pz,qw,qx,qy,qz"):
         find_groundtruth(str(tmp_path))

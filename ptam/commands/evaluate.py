@@ -3,6 +3,9 @@ trajectories up to a similarity because a monocular map has no absolute scale); 
 alignment, and the correct fraction and glitch frames (``ptam.eval.correctness``: within ``--correct-mm`` and
 ``--correct-deg`` after a robust Sim(3) fit).
 
+GT may also be a EuRoC sequence's ``mav0/state_groundtruth_estimate0/data.csv``: its body poses are taken to
+the camera by the ``T_BS`` of ``mav0/cam0/sensor.yaml`` beside it (``ptam.capture.euroc_groundtruth``).
+
 The last line printed is machine-readable and its format is fixed (new keys are only ever appended):
 ``ate_rmse_m=<float> scale=<float> matched=<int>/<int> tracked_fraction=<float> path_length_m=<float>
 rot_rmse_deg=<float> correct_fraction=<float> glitches=<int>``.
@@ -10,8 +13,12 @@ rot_rmse_deg=<float> correct_fraction=<float> glitches=<int>``.
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
+from ..capture.dataset import EUROC_CALIBRATION_FILE
+from ..capture.euroc_groundtruth import body_to_camera, read_euroc_groundtruth
 from ..errors import PtamError
 from ..eval import associate, ate, pairs_by_time, read_tum, rpe
 from ..eval.ate import MIN_POSES
@@ -46,12 +53,22 @@ def _report_correctness(T_gt, T_est, n_gt: int, crit: Criteria, R_ate) -> tuple[
     return rot_rmse, c.correct_fraction, c.glitches
 
 
+def read_groundtruth(path: str) -> tuple[np.ndarray, np.ndarray]:
+    """A TUM file, or a EuRoC ground-truth ``data.csv`` taken to its sequence's cam0 (body poses without one)."""
+    if not path.endswith(".csv"):
+        return read_tum(path)
+    sensor = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(path))), "cam0", EUROC_CALIBRATION_FILE)
+    if not os.path.isfile(sensor):
+        print(f"groundtruth: no {sensor}: comparing with the body poses of {path}")
+    return read_euroc_groundtruth(path, body_to_camera(sensor))
+
+
 def main(args, cfg) -> int:
     max_dt = cfg.eval.max_time_diff_s if args.max_dt is None else args.max_dt
     if not max_dt >= 0:
         raise PtamError(f"--max-dt must be non-negative, got {max_dt}")
     crit = criteria(args, cfg)
-    t_gt, T_gt = read_tum(args.groundtruth)
+    t_gt, T_gt = read_groundtruth(args.groundtruth)
     t_est, T_est = read_tum(args.estimate)
     if len(t_gt) == 0:
         raise PtamError(f"{args.groundtruth}: no poses")
