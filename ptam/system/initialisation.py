@@ -125,8 +125,9 @@ class Initialisation:
         if T_newest is not None:
             self._held = [(newest.timestamp, se3.inv(T_newest))]
             self.stats.tracked += 1
-        if rot is not None:  # the poses tracked in the panorama before the first keyframe, in the map's frame
-            earlier = rot.before(built.first[0], self.mapper.map.kf_T_cw[0])
+        T0 = self.mapper.map.kf_T_cw[0]
+        if rot is not None and rot.agrees(built.first[0], T0, self.mapper.snapshot):
+            earlier = rot.before(built.first[0], T0)  # the panorama's poses before the first keyframe, in its frame
             self.trajectory.extend(earlier)
             self.stats.tracked += len(earlier)
         self._collect_posed(wait=self.mode == RunMode.SYNC)

@@ -26,7 +26,7 @@ import numpy as np
 
 from ..camera.model import CameraModel
 from ..config import Config
-from ..geometry import se3
+from ..geometry import se3, so3
 from ..geometry.sim3 import Similarity
 from ..image.pyramid import Pyramid
 from ..mapping.map_maker import KeyframeRequest, MapMaker
@@ -179,6 +179,37 @@ class RotationStart:
         if not earlier:
             return []
         return list(zip([ts for ts, _ in earlier], into.poses_wc(se3.inv(np.array([T for _, T in earlier])))))
+
+    def agrees(self, first_index: int, T0_cw: np.ndarray, snapshot) -> bool:
+        """Whether the panorama shares the first map's centre, as :meth:`before` assumes: every panorama keyframe
+        taken before the anchor that sees the map (tracked with good quality from its joined pose) stays within the
+        fine search radius of that pose, counting its turn and its move (at the map's depth) in pixels. A camera
+        that translated while a model-free check could not tell (over a plane, any motion is a homography) fails
+        it, and its rotation-only poses are then withheld: lost frames, not wrong ones. Turn and move are counted
+        apart, each as the image shift it alone would cause (a plane's image can look alike at two poses that differ
+        by a turn and a move mimicking it: the pose is what is reported)."""
+        if self._anchor is None or self._anchor[0] != first_index or self.mapper is None:
+            return True
+        m, into = self.mapper.map, self._into(T0_cw)
+        anchor_time = next((ts for i, ts, _ in self.poses if i == first_index), np.inf)
+        f, depth = 0.5 * (self.camera.fx + self.camera.fy), snapshot.keyframes[0].scene_depth_mean
+        for kf, T_cw in zip(m.keyframes, m.kf_T_cw):
+            if kf.timestamp >= anchor_time:
+                continue
+            joined = se3.inv(into.poses_wc(se3.inv(T_cw[None]))[0])
+            tracker = Tracker(self.camera, self.cfg)
+            tracker.set_pose(joined, recovered=True)
+            res = tracker.track(kf.pyramid.levels[0], snapshot, kf.pyramid)
+            if res.quality != Quality.GOOD:
+                continue  # it does not see the map: nothing to compare
+            turn = np.linalg.norm(so3.log(res.T_cw[:3, :3] @ joined[:3, :3].T))
+            move = np.linalg.norm(se3.inv(res.T_cw)[:3, 3] - se3.inv(joined)[:3, 3]) / depth
+            moved_px = f * max(turn, move)
+            if moved_px > self.cfg.tracker.fine_radius_px:
+                log.info("the rotation-only poses are not joined to the map: panorama keyframe at %.2f s is %.0f px "
+                         "off", kf.timestamp, moved_px)  # fmt: skip
+                return False
+        return True
 
     def _into(self, T0_cw: np.ndarray) -> Similarity:
         """The panorama's frame -> that of the map whose first keyframe, at pose ``T0_cw``, is the anchor: rotated
