@@ -13,6 +13,9 @@ import numpy as np
 from numba import njit
 
 PINHOLE, FOV, RADTAN = 0, 1, 2
+# ``undistort``'s Gauss–Newton: steps at most, and the normalised residual that ends it.
+UNDISTORT_ITERS = 30
+UNDISTORT_TOL = 1e-14
 
 
 @njit(nogil=True, cache=True, inline="always")
@@ -110,24 +113,35 @@ def project_points_jac(cam, Xc):
     return uv, J, valid
 
 
+@njit(nogil=True, cache=True, inline="always")
+def undistort(cam, xd, yd, iters, tol):
+    """Distorted normalised (xd, yd) -> undistorted (x, y). FOV in closed form, r = tan(r'ω) / (2·tan(ω/2)) (as
+    ``FovCamera.undistort``, which clamps r'ω below π/2 the same way); otherwise Gauss–Newton on ``distort`` and
+    its 2×2 Jacobian from the distorted point, until both residuals are below ``tol`` or after ``iters`` steps."""
+    if int(cam[0]) == FOV:
+        w, t2 = cam[5], cam[6]
+        rd = math.sqrt(xd * xd + yd * yd)
+        inv = w / t2 if rd < 1e-6 else math.tan(min(rd * w, math.pi / 2 - 1e-9)) / (t2 * rd)
+        return xd * inv, yd * inv
+    x = xd
+    y = yd
+    for _ in range(iters):
+        dx, dy, a, b, c, d = distort(cam, x, y)
+        rx = dx - xd
+        ry = dy - yd
+        if abs(rx) < tol and abs(ry) < tol:
+            break
+        det = a * d - b * c
+        x -= (d * rx - b * ry) / det
+        y -= (a * ry - c * rx) / det
+    return x, y
+
+
 @njit(nogil=True, cache=True)
 def undistort_points(cam, xy_d, iters, tol):
-    """Distorted normalised points (N, 2) -> undistorted: Gauss–Newton on ``distort`` and its 2×2 Jacobian, per
-    point from the distorted point, until both residuals are below ``tol`` or after ``iters`` steps."""
+    """Distorted normalised points (N, 2) -> undistorted, each by ``undistort``."""
     n = xy_d.shape[0]
     out = np.empty((n, 2))
     for i in range(n):
-        x = xy_d[i, 0]
-        y = xy_d[i, 1]
-        for _ in range(iters):
-            xd, yd, a, b, c, d = distort(cam, x, y)
-            rx = xd - xy_d[i, 0]
-            ry = yd - xy_d[i, 1]
-            if abs(rx) < tol and abs(ry) < tol:
-                break
-            det = a * d - b * c
-            x -= (d * rx - b * ry) / det
-            y -= (a * ry - c * rx) / det
-        out[i, 0] = x
-        out[i, 1] = y
+        out[i, 0], out[i, 1] = undistort(cam, xy_d[i, 0], xy_d[i, 1], iters, tol)
     return out

@@ -10,11 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..vocabulary import LensModel
-from .camproj_kernels import RADTAN, undistort_points
+from .camproj_kernels import RADTAN, UNDISTORT_ITERS, UNDISTORT_TOL, undistort_points
 from .model import KERNEL_PARAMS_LEN, CameraModel
-
-_UNDISTORT_ITERS = 30
-_UNDISTORT_TOL = 1e-14
 
 
 class RadTanCamera(CameraModel):
@@ -53,7 +50,7 @@ class RadTanCamera(CameraModel):
         cam = np.zeros(KERNEL_PARAMS_LEN)
         cam[0] = RADTAN
         cam[5:10] = self.distortion_params()
-        return undistort_points(cam, flat, _UNDISTORT_ITERS, _UNDISTORT_TOL).reshape(xy_d.shape)
+        return undistort_points(cam, flat, UNDISTORT_ITERS, UNDISTORT_TOL).reshape(xy_d.shape)
 
     def distortion_params(self):
         return [self.k1, self.k2, self.p1, self.p2, self.k3]

@@ -161,7 +161,7 @@ class Bundle:
             **summary,
             outliers=np.sort(st.sel[s.outlier]),
             phase_seconds=phases,
-            **s.edg.summary(s.P, edg),
+            **s.edg.summary(s.P, edg, s.residuals_current),
         )
 
     def _levenberg_marquardt(

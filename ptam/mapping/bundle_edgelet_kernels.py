@@ -5,6 +5,7 @@ instead of 3×3: per measurement the two perpendicular distances ε_n (eq. 7) an
 eq. 8) and ∂ε/∂μ_E (2×4, eq. 9), as ``ptam.edgelet.edgelet_ba_kernels.edgelet_ba_terms`` has them, are weighted by
 the Tukey biweight and accumulated:
 
+* ``ba_edgelet_planes``: the measured lines moved, once, to the normalised image plane (``bundle_edgelets``).
 * ``ba_edgelet_place``: the two virtual sample points of eq. 6, ±5 px from the projected centre, at the start.
 * ``ba_edgelet_rows``: at each linearisation, ε, |ε|² (the Tukey cut-off's input) and the Jacobian rows at those
   sample points, in one pass over the measurements (each sample point is projected once).
@@ -38,7 +39,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..camera.camproj_kernels import project, project_jac
+from ..camera.camproj_kernels import distort, project, project_jac, undistort
 from ..edgelet.edgelet_ba_kernels import axis_in_camera, measurement_rows
 from .bundle_kernels import clear_residual
 from .bundle_schur_kernels import eliminate
@@ -50,6 +51,29 @@ def _pixels(to_px, du, dv):
     pu = to_px[0, 0] * du + to_px[0, 1] * dv
     pv = to_px[1, 0] * du + to_px[1, 1] * dv
     return math.sqrt(pu * pu + pv * pv)
+
+
+@njit(nogil=True, cache=True)
+def ba_edgelet_planes(cam, a, b, iters, tol, xy, g, to_px):
+    """Each measured line, through ``a`` (M, 2) px along ``b`` (M, 2), on the normalised image plane
+    (``bundle_edgelets.lens_linearised``): ``xy`` (M, 2) the unprojected a (``undistort``'s ``iters``, ``tol``),
+    ``to_px`` (M, 2, 2) the lens's pixel Jacobian there and ``g`` (M, 2) = m̂ᵀ to_px, m̂ = perp(b)/|b| the line's
+    unit normal."""
+    fx, fy = cam[1], cam[2]
+    for k in range(a.shape[0]):
+        x, y = undistort(cam, (a[k, 0] - cam[3]) / fx, (a[k, 1] - cam[4]) / fy, iters, tol)
+        _, _, ja, jb, jc, jd = distort(cam, x, y)
+        xy[k, 0] = x
+        xy[k, 1] = y
+        to_px[k, 0, 0] = fx * ja
+        to_px[k, 0, 1] = fx * jb
+        to_px[k, 1, 0] = fy * jc
+        to_px[k, 1, 1] = fy * jd
+        norm = math.sqrt(b[k, 0] * b[k, 0] + b[k, 1] * b[k, 1])
+        m0 = -b[k, 1] / norm
+        m1 = b[k, 0] / norm
+        g[k, 0] = m0 * to_px[k, 0, 0] + m1 * to_px[k, 1, 0]
+        g[k, 1] = m0 * to_px[k, 0, 1] + m1 * to_px[k, 1, 1]
 
 
 @njit(nogil=True, cache=True, inline="always")

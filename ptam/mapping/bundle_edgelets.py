@@ -37,13 +37,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..camera.camproj_kernels import UNDISTORT_ITERS, UNDISTORT_TOL
 from ..camera.model import KERNEL_PARAMS_LEN, MODEL_IDS, CameraModel
-from ..edgelet import Edgelets, perp
+from ..edgelet import Edgelets
 from ..edgelet.edgelet_ba_kernels import frames_updated
 from ..vocabulary import LensModel
 from .bundle_edgelet_kernels import (
     ba_edgelet_linearise,
     ba_edgelet_place,
+    ba_edgelet_planes,
     ba_edgelet_residuals,
     ba_edgelet_rows,
     ba_edgelet_schur,
@@ -55,16 +57,18 @@ from .bundle_schur_kernels import ba_backsub
 from .bundle_structure import BundleStructure, EdgeletStructure, seen_twice
 
 
-def lens_linearised(camera: CameraModel, a: np.ndarray, m_hat: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Measured lines through ``a`` (M, 2) px with unit normals ``m_hat`` on the normalised image plane: the kernel
+def lens_linearised(camera: CameraModel, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Measured lines through ``a`` (M, 2) px along ``b`` (M, 2) on the normalised image plane: the kernel
     parameters of its unit pinhole (the lens's range kept: the same points are valid), the unprojected points,
-    the normals g = m̂ᵀL (M, 2) and L (M, 2, 2), the lens's pixel Jacobian at each point."""
-    xy = camera.unproject(a)
-    to_px = camera.distort_jacobian(xy) * np.array([camera.fx, camera.fy])[None, :, None]
-    g = np.einsum("mi,mij->mj", m_hat, to_px)
+    the normals g = m̂ᵀL (M, 2) (m̂ the unit normal in the image) and L (M, 2, 2), the lens's pixel Jacobian at each
+    point (``ba_edgelet_planes``; numpy reference ``tests/reference/bundle_edgelets.py``)."""
+    m = len(a)
+    xy, g, to_px = np.empty((m, 2)), np.empty((m, 2)), np.empty((m, 2, 2))
+    a, b = (np.ascontiguousarray(v, dtype=np.float64) for v in (a, b))
+    ba_edgelet_planes(camera.kernel_params(), a, b, UNDISTORT_ITERS, UNDISTORT_TOL, xy, g, to_px)
     plane = np.zeros(KERNEL_PARAMS_LEN)
     plane[[0, 1, 2, 10]] = MODEL_IDS[LensModel.PINHOLE], 1.0, 1.0, camera.max_radius
-    return plane, np.ascontiguousarray(xy), np.ascontiguousarray(g), np.ascontiguousarray(to_px)
+    return plane, xy, g, to_px
 
 
 class EdgeletLM:
@@ -83,10 +87,8 @@ class EdgeletLM:
         if inp is None:
             return
         self.F = np.ascontiguousarray(inp.edgelets.subset(es.ids).frames())
-        b = inp.obs.b[es.sel]
-        m_hat = perp(b / np.linalg.norm(b, axis=1, keepdims=True))
         # The measured lines on the normalised plane: through a, normal g (not unit: pixels per plane unit).
-        self.cam, self.a, self.g, self.to_px = lens_linearised(camera, inp.obs.a[es.sel], m_hat)
+        self.cam, self.a, self.g, self.to_px = lens_linearised(camera, inp.obs.a[es.sel], inp.obs.b[es.sel])
         self.offset_px = inp.cfg.ba_sample_offset_px
         self.along = np.zeros((self.n, 2))
         self.placed = np.zeros((self.n, 2))
@@ -218,17 +220,20 @@ class EdgeletLM:
         self.outlier |= flagged
         self.use &= ~flagged
 
-    def summary(self, P: np.ndarray, inp: EdgeletBundleInput | None) -> dict:
+    def summary(self, P: np.ndarray, inp: EdgeletBundleInput | None, current: bool) -> dict:
         """The adjusted edgelets (all of the input's, rows not adjusted unchanged), the outliers' input indices
-        and the inlier count at the returned state."""
+        and the inlier count at the returned state (``current``: the accepted trial's residuals are that state's,
+        for every measurement still in use)."""
         if inp is None:
             return {}
         out = inp.edgelets
         if self.n:
-            self._residuals(P, self.F, self.use)  # at the last linearisation's sample points: no Jacobians needed
-            done = Edgelets.from_frames(self.F)
+            if not current:
+                self._residuals(P, self.F, self.use)  # at the last linearisation's sample points: no Jacobians needed
+            # The frames are orthonormal (``frames_updated``, or the checked input's).
             centre, direction, normal = out.centre.copy(), out.direction.copy(), out.normal.copy()
-            centre[self.es.ids], direction[self.es.ids], normal[self.es.ids] = done.centre, done.direction, done.normal
+            ids = self.es.ids
+            centre[ids], direction[ids], normal[ids] = self.F[:, :3, 3], self.F[:, :3, 2], self.F[:, :3, 0]
             out = Edgelets(centre, direction, normal)
         outliers = np.sort(self.es.sel[self.outlier]) if self.n else np.zeros(0, np.int64)
         return {"edgelets": out, "edgelet_outliers": outliers, "n_edgelet_inliers": int((self.use & ~self.bad).sum())}

@@ -4,6 +4,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from ptam.edgelet import perp
+
+
+def lens_linearised_ref(camera, a, b):
+    """The unprojected points a, the normals g = m̂ᵀL of the lines along b and L, the lens's pixel Jacobian."""
+    m_hat = perp(b / np.linalg.norm(b, axis=1, keepdims=True))
+    xy = camera.unproject(a)
+    to_px = camera.distort_jacobian(xy) * np.array([camera.fx, camera.fy])[None, :, None]
+    return xy, np.einsum("mi,mij->mj", m_hat, to_px), to_px
+
 
 def ba_edgelet_linearise_ref(err, Jp, Je, e2, bad, use, c2, mrow, medg, n_free, n_edgelets):
     """The edgelets' U, ε_a, V, ε_b, W (zero where not live or the camera is fixed) and live."""
