@@ -72,11 +72,42 @@ def test_residuals_and_cost(problem):
     r_err, r_e2, r_bad = R.ba_residuals_ref(cam, P, X, st.mcam, st.mpt, uv, inv_sigma, use)
     assert np.array_equal(bad, r_bad) and bad.sum() > 0
     assert close(err, r_err) and close(e2, r_e2)
-    for min_c in (0.4, 50.0):
+    # Floors below, at and above the median's own cut-off: the floor's shortcut gives the selection's answer.
+    c_median = np.sqrt(R.tukey_cutoff_sq_ref(e2, use, bad, 0.0))
+    for min_c in (0.4, c_median * (1 - 1e-12), c_median, c_median * (1 + 1e-12), 50.0):
         c2 = K.tukey_cutoff_sq(e2, use, bad, min_c)
         assert close(c2, R.tukey_cutoff_sq_ref(e2, use, bad, min_c))
         assert close(K.ba_robust_cost(e2, bad, use, c2), R.ba_robust_cost_ref(e2, bad, use, c2))
     assert K.tukey_cutoff_sq(e2, np.zeros(n, bool), bad, 0.4) == pytest.approx(0.16)
+
+
+@pytest.mark.parametrize("kind", ["random", "sorted", "reversed", "few values", "all equal", "sawtooth"])
+def test_select_kth_matches_a_sort(kind):
+    """The quickselect behind the Tukey cut-off returns the k-th smallest value exactly, on inputs that defeat
+    naive pivots, for every k tried."""
+    rng = np.random.default_rng(4)
+    n = 2001
+    a = {
+        "random": rng.chisquare(2, n),
+        "sorted": np.sort(rng.random(n)),
+        "reversed": np.sort(rng.random(n))[::-1].copy(),
+        "few values": rng.integers(0, 3, n).astype(float),
+        "all equal": np.full(n, 0.25),
+        "sawtooth": np.tile(np.sort(rng.random(n // 3)), 4)[:n],
+    }[kind]
+    for k in (0, 1, n // 2, n - 2, n - 1):
+        work = a.copy()
+        assert K.select_kth(work, n, k) == np.sort(a)[k]
+        assert np.array_equal(np.sort(work), np.sort(a))  # reordered, nothing lost
+    # Errors gathered from two sets (points, edgelets) give the cut-off of their concatenation.
+    e2, use, bad = a[:1000], rng.random(1000) < 0.8, rng.random(1000) < 0.05
+    f2, fuse, fbad = a[1000:], rng.random(n - 1000) < 0.8, np.zeros(n - 1000, bool)
+    out = np.empty(n)
+    m = K.gather_errors(f2, fuse, fbad, out, K.gather_errors(e2, use, bad, out, 0))
+    joint = R.tukey_cutoff_sq_ref(
+        np.concatenate([e2, f2]), np.concatenate([use, fuse]), np.concatenate([bad, fbad]), 0.1
+    )
+    assert m == (use & ~bad).sum() + fuse.sum() and K.cutoff_sq_of(out, m, 0.1) == joint
 
 
 def linearised(problem):

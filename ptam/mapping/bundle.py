@@ -44,7 +44,7 @@ from ..geometry import se3
 from .bundle_edgelets import EdgeletLM
 from .bundle_gauge import ScaleGauge
 from .bundle_inputs import EdgeletBundleInput, _checked_inputs, _Inputs
-from .bundle_kernels import ba_linearise, ba_residuals, ba_robust_cost, tukey_cutoff_sq
+from .bundle_kernels import ba_linearise, ba_residuals, ba_robust_cost, cutoff_sq_of, gather_errors, tukey_cutoff_sq
 from .bundle_schur_kernels import ba_backsub, ba_schur
 from .bundle_structure import BundleStructure, ReducedSolver, build_structure, seen_twice
 
@@ -200,7 +200,9 @@ class Bundle:
         if not s.residuals_current:  # measurements in use are a subset of the accepted trial's, if any
             ba_residuals(cam, s.P, s.X, st.mcam, st.mpt, s.uv, s.inv_sigma, s.use, s.err, s.e2, s.bad)
         s.edg.residuals(s.P)
-        s.c2 = c2 = tukey_cutoff_sq(*s.joint_errors(), self.cfg.min_tukey_sigma)
+        n = gather_errors(s.e2, s.use, s.bad, s.errs, 0)
+        n = gather_errors(s.edg.e2, s.edg.use, s.edg.bad, s.errs, n)  # one cut-off for both (``bundle_edgelets``)
+        s.c2 = c2 = cutoff_sq_of(s.errs, n, self.cfg.min_tukey_sigma)
         cost = ba_linearise(cam, s.P, s.X, st.mcam, st.mpt, s.uv, s.inv_sigma, s.use, c2, st.cam_row, *s.normal, s.live)
         cost += s.edg.linearise(c2, (s.U, s.ea))
         phases["linearise"] += time.perf_counter() - t
@@ -354,6 +356,7 @@ class _LMState:
         self.blocks = np.zeros((len(st.pair_rows), 6, 6))
         self.rhs = np.zeros(6 * nf)
         self.Vinv = np.zeros((mc, 3, 3))
+        self.errs = np.zeros(kc + edg.n)  # the squared errors the Tukey cut-off is taken from
         self.c2 = np.nan
         self.residuals_current = False  # err, e2, bad hold the points' residuals at (P, X) for every measurement in use
         self.gauge: ScaleGauge | None = None
@@ -373,13 +376,6 @@ class _LMState:
 
     def any_use(self) -> bool:
         return bool(self.use.any() or self.edg.use.any())
-
-    def joint_errors(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(e², use, bad) of the points and then the edgelets, for one Tukey cut-off (``bundle_edgelets``)."""
-        if not self.edg.n:
-            return self.e2, self.use, self.bad
-        e = self.edg
-        return tuple(np.concatenate(p) for p in ((self.e2, e.e2), (self.use, e.use), (self.bad, e.bad)))  # type: ignore[return-value]
 
     def summary(self, cam) -> dict:
         st = self.st
