@@ -7,7 +7,7 @@ import pytest
 from ptam.camera.radtan import RadTanCamera
 from ptam.config import default_config
 from ptam.edgelet import EdgeletObservations, Edgelets, perp, project_edgelets, sample_along
-from ptam.edgelet.edgelet_ba_kernels import edgelet_ba_terms, frames_updated
+from ptam.edgelet.edgelet_ba_kernels import edgelet_ba_terms, frames_of, frames_updated
 from ptam.geometry import so3
 from ptam.map.snapshot import camera_centres
 from ptam.mapping import bundle_edgelet_kernels as EK
@@ -333,6 +333,19 @@ def test_frames_update_kernel_matches_reference(problem):
     assert close(eb.init.updated(de).frames(), out, 1e-15)
     RtR = np.einsum("nji,njk->nik", out[:, :3, :3], out[:, :3, :3])
     assert close(RtR, np.broadcast_to(np.eye(3), (len(de), 3, 3)), 1e-12)
+
+
+def test_frames_kernel_orthonormalises_as_numpy(problem):
+    """``frames_of`` (an adjustment's starting frames) against ``Edgelets.orthonormalised().frames()``, on edgelets
+    whose directions are scaled and whose normals lean 20° towards them, for a subset in another order."""
+    _, eb = problem
+    rng = np.random.default_rng(6)
+    e = eb.init
+    raw = Edgelets(e.centre, e.direction * rng.uniform(0.5, 2.0, (len(e), 1)), e.normal + 0.36 * e.direction)
+    ids = rng.permutation(len(e))[: len(e) // 2]
+    out = np.empty((len(ids), 4, 4))
+    frames_of(raw.centre, raw.direction, raw.normal, ids, out)
+    assert close(out, raw.orthonormalised().subset(ids).frames(), 1e-14)
 
 
 def test_seen_update_kernel_matches_reference(problem):

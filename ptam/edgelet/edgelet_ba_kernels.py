@@ -119,11 +119,37 @@ def edgelet_normal_equations(cam, poses, frames, mkf, medg, line_a, line_n, alon
     return H, g, count
 
 
+@njit(nogil=True, cache=True, inline="always")
+def _set_frame(z0, z1, z2, x0, x1, x2, c0, c1, c2, out):
+    """``out`` (4, 4) = the frame at centre c with direction z and normal x made orthonormal as
+    ``Edgelets.orthonormalised`` does: z normalised, x made perpendicular to it and normalised, y = z × x."""
+    zn = math.sqrt(z0 * z0 + z1 * z1 + z2 * z2)
+    z0, z1, z2 = z0 / zn, z1 / zn, z2 / zn
+    xz = x0 * z0 + x1 * z1 + x2 * z2
+    x0, x1, x2 = x0 - xz * z0, x1 - xz * z1, x2 - xz * z2
+    xn = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+    x0, x1, x2 = x0 / xn, x1 / xn, x2 / xn
+    out[:] = 0.0
+    out[0, 0], out[1, 0], out[2, 0] = x0, x1, x2
+    out[0, 1], out[1, 1], out[2, 1] = z1 * x2 - z2 * x1, z2 * x0 - z0 * x2, z0 * x1 - z1 * x0
+    out[0, 2], out[1, 2], out[2, 2] = z0, z1, z2
+    out[0, 3], out[1, 3], out[2, 3] = c0, c1, c2
+    out[3, 3] = 1.0
+
+
+@njit(nogil=True, cache=True)
+def frames_of(centre, direction, normal, ids, out):
+    """E_WE (len(ids), 4, 4) of the edgelets ``ids``, orthonormalised (``Edgelets.orthonormalised().frames()``)."""
+    for i in range(ids.shape[0]):
+        e = ids[i]
+        z, x, c = direction[e], normal[e], centre[e]
+        _set_frame(z[0], z[1], z[2], x[0], x[1], x[2], c[0], c[1], c[2], out[i])
+
+
 @njit(nogil=True, cache=True)
 def frames_updated(F, de, out):
     """E_WE ← E_WE · exp(μ) for μ = (t_x, t_y, ω_x, ω_y) (E, 4) in each edgelet's own frame (eq. 9), written to
-    ``out`` (E, 4, 4) re-orthonormalised as ``Edgelets.orthonormalised`` does: the direction (z) normalised, the
-    normal (x) made perpendicular to it and normalised, y = z × x."""
+    ``out`` (E, 4, 4) re-orthonormalised (``_set_frame``)."""
     mu = np.zeros(6)
     X = np.empty((4, 4))
     M = np.zeros((4, 4))
@@ -137,15 +163,4 @@ def frames_updated(F, de, out):
             for c in range(4):
                 M[r, c] = F[e, r, 0] * X[0, c] + F[e, r, 1] * X[1, c] + F[e, r, 2] * X[2, c]
             M[r, 3] += F[e, r, 3]
-        zn = math.sqrt(M[0, 2] ** 2 + M[1, 2] ** 2 + M[2, 2] ** 2)
-        z0, z1, z2 = M[0, 2] / zn, M[1, 2] / zn, M[2, 2] / zn
-        xz = M[0, 0] * z0 + M[1, 0] * z1 + M[2, 0] * z2
-        x0, x1, x2 = M[0, 0] - xz * z0, M[1, 0] - xz * z1, M[2, 0] - xz * z2
-        xn = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
-        x0, x1, x2 = x0 / xn, x1 / xn, x2 / xn
-        out[e] = 0.0
-        out[e, 0, 0], out[e, 1, 0], out[e, 2, 0] = x0, x1, x2
-        out[e, 0, 1], out[e, 1, 1], out[e, 2, 1] = z1 * x2 - z2 * x1, z2 * x0 - z0 * x2, z0 * x1 - z1 * x0
-        out[e, 0, 2], out[e, 1, 2], out[e, 2, 2] = z0, z1, z2
-        out[e, 0, 3], out[e, 1, 3], out[e, 2, 3] = M[0, 3], M[1, 3], M[2, 3]
-        out[e, 3, 3] = 1.0
+        _set_frame(M[0, 2], M[1, 2], M[2, 2], M[0, 0], M[1, 0], M[2, 0], M[0, 3], M[1, 3], M[2, 3], out[e])

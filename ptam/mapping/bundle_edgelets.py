@@ -40,7 +40,7 @@ import numpy as np
 from ..camera.camproj_kernels import UNDISTORT_ITERS, UNDISTORT_TOL
 from ..camera.model import KERNEL_PARAMS_LEN, MODEL_IDS, CameraModel
 from ..edgelet import Edgelets
-from ..edgelet.edgelet_ba_kernels import frames_updated
+from ..edgelet.edgelet_ba_kernels import frames_of, frames_updated
 from ..vocabulary import LensModel
 from .bundle_edgelet_kernels import (
     ba_edgelet_linearise,
@@ -86,7 +86,9 @@ class EdgeletLM:
         self.bad = np.zeros(self.n, bool)
         if inp is None:
             return
-        self.F = np.ascontiguousarray(inp.edgelets.subset(es.ids).frames())
+        ed = inp.edgelets
+        self.F = np.empty((len(es.ids), 4, 4))
+        frames_of(ed.centre, ed.direction, ed.normal, es.ids, self.F)  # orthonormal, as every frame a step makes
         # The measured lines on the normalised plane: through a, normal g (not unit: pixels per plane unit).
         self.cam, self.a, self.g, self.to_px = lens_linearised(camera, inp.obs.a[es.sel], inp.obs.b[es.sel])
         self.offset_px = inp.cfg.ba_sample_offset_px
@@ -230,7 +232,7 @@ class EdgeletLM:
         if self.n:
             if not current:
                 self._residuals(P, self.F, self.use)  # at the last linearisation's sample points: no Jacobians needed
-            # The frames are orthonormal (``frames_updated``, or the checked input's).
+            # The frames are orthonormal (``frames_of``, ``frames_updated``).
             centre, direction, normal = out.centre.copy(), out.direction.copy(), out.normal.copy()
             ids = self.es.ids
             centre[ids], direction[ids], normal[ids] = self.F[:, :3, 3], self.F[:, :3, 2], self.F[:, :3, 0]

@@ -102,4 +102,4 @@ class EdgeletBundleInput:
             raise InputError(f"bundle adjustment: edgelet measurement keyframe index out of range [0, {n_keyframes})")
         if k and (idx.min() < 0 or idx.max() >= n):
             raise InputError(f"bundle adjustment: edgelet index out of range [0, {n})")
-        return EdgeletBundleInput(ed.orthonormalised(), EdgeletObservations(kf, idx, a, b), self.cfg, adjust)
+        return EdgeletBundleInput(ed, EdgeletObservations(kf, idx, a, b), self.cfg, adjust)
