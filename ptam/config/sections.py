@@ -159,6 +159,8 @@ class InitConfig:
     inlier_sigmas: Annotated[float, Range("(0, inf)")]
     triangulation_max_error_px: Annotated[float, Range("(0, inf)")]
     min_parallax_deg: Annotated[float, Range("[0, 180)")]
+    homography_ambiguity_ratio: Annotated[float, Range("(0, 1]")]
+    homography_resolve_ambiguity: bool
     max_ba_rounds: Annotated[int, Range("[0, inf)")]
     track_frames_between: bool
     max_history_frames: Annotated[int, Range("[0, inf)")]
