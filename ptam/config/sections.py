@@ -161,6 +161,7 @@ class InitConfig:
     min_parallax_deg: Annotated[float, Range("[0, 180)")]
     homography_ambiguity_ratio: Annotated[float, Range("(0, 1]")]
     homography_resolve_ambiguity: bool
+    homography_ambiguity_alpha: Annotated[float, Range("(0, 1]")]
     max_ba_rounds: Annotated[int, Range("[0, inf)")]
     track_frames_between: bool
     max_history_frames: Annotated[int, Range("[0, inf)")]

@@ -12,6 +12,7 @@ restarts initialisation: too few trails, too few inliers, or too little parallax
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
@@ -34,6 +35,10 @@ class InitFailure(Exception):
     """Initialisation did not succeed; ``str(e)`` is the reason."""
 
 
+class AmbiguousPair(InitFailure):
+    """The pair fits two relative poses equally; the same first keyframe with a later second one may not."""
+
+
 @dataclass(frozen=True)
 class TwoViewResult:
     T_c1c0: np.ndarray  # (4, 4) second camera from first camera, unit baseline
@@ -49,40 +54,82 @@ def _triangulate(T: np.ndarray, r0: np.ndarray, r1: np.ndarray):
     return X0, X1
 
 
-def _from_homography(H: np.ndarray, r0: np.ndarray, r1: np.ndarray, inl: np.ndarray, sigma: float, c):
-    """The decomposition of H with most inliers in front of both cameras (PTAM code, HomographyInit::
-    ChooseBestDecomposition). Faugeras and Lustman's two-way ambiguity (a second distinct decomposition with
-    ``c.homography_ambiguity_ratio`` as many in front) is resolved as PTAM does, by the capped Sampson error of all
-    matches under each one's E, only with ``c.homography_resolve_ambiguity``: every point on the plane fits both
-    equally, so that decides on the few off it and the wrong matches. desk_corner filmed at 10 fps paired two
-    frames with 40 surviving trails, 36 in front under both; the Sampson errors chose a decomposition 9.4° and 50°
-    (translation direction) off, and all 22 poses reported on that map were wrong. On a plane alone the tie-break is
-    a coin flip: pushed towards a desk, 22 of 40 synthetic pairs right, and the wrong ones at Sampson sums up to 1.26
-    times the right one's (no margin separates them). By default InitFailure: a later pair, with points off the
-    plane or a move across it, tells the two apart by the points in front; a camera only pushed towards a plane
-    does not initialise."""
+@dataclass(frozen=True)
+class _Decomposition:
+    """One decomposition of H: the relative pose, which of all N matches it puts in front of both cameras (of H's
+    inliers; False for the others) and their squared Sampson errors under its E, in σ²."""
+
+    T: np.ndarray
+    front: np.ndarray
+    e2: np.ndarray
+
+    def cost(self, cap: float) -> float:
+        return float(np.minimum(self.e2, cap).sum())
+
+
+def _decompositions(H: np.ndarray, r0: np.ndarray, r1: np.ndarray, inl: np.ndarray, sigma: float):
     _, Rs, ts, _ = cv2.decomposeHomographyMat(H, np.eye(3))
-    scored = []
+    out = []
     for R, t in zip(Rs, ts):
         t = t.ravel()
         if np.linalg.norm(t) < 1e-12:
             continue
         T = se3.from_Rt(R, t / np.linalg.norm(t))
         X0, X1 = _triangulate(T, r0[inl], r1[inl])
-        front = int(((X0[:, 2] > 0) & (X1[:, 2] > 0)).sum())
-        E = so3.hat(T[:3, 3]) @ T[:3, :3]
-        err = float(np.minimum(sampson_sq(E, r0, r1) / sigma**2, c.gric_lambda3 * 2.0).sum())
-        scored.append((front, err, T))
-    if not scored:
+        front = np.zeros(len(r0), bool)
+        front[inl] = (X0[:, 2] > 0) & (X1[:, 2] > 0)
+        out.append(_Decomposition(T, front, sampson_sq(so3.hat(T[:3, 3]) @ T[:3, :3], r0, r1) / sigma**2))
+    return out
+
+
+def _from_homography(H: np.ndarray, r0: np.ndarray, r1: np.ndarray, inl: np.ndarray, sigma: float, c):
+    """The decomposition of H with most inliers in front of both cameras (PTAM code, HomographyInit::
+    ChooseBestDecomposition). Faugeras and Lustman's two-way ambiguity (a second distinct decomposition with
+    ``c.homography_ambiguity_ratio`` as many in front) PTAM resolves by the capped Sampson error of all matches
+    under each one's E (``c.homography_resolve_ambiguity``). But every point on the plane fits both equally, so that
+    is decided by the few off it and by the wrong matches: desk_corner filmed at 10 fps paired two frames with 40
+    surviving trails, 36 in front under both, and got a map 9.4° and 50° (translation direction) off; on a plane
+    alone, pushed towards a desk, 18 of 40 synthetic pairs came out wrong, at Sampson sums up to 1.26 times the right
+    one's. Here the matches that tell the two apart decide (``_evidence``): one is taken only when they favour it
+    beyond chance (a sign test at ``c.homography_ambiguity_alpha``), else ``AmbiguousPair``, and the same first
+    keyframe with a later second one is tried."""
+    ds = _decompositions(H, r0, r1, inl, sigma)
+    if not ds:
         return None
-    best_front = max(s[0] for s in scored)
-    near = sorted((s for s in scored if s[0] >= c.homography_ambiguity_ratio * best_front), key=lambda s: s[1])
-    if not c.homography_resolve_ambiguity and any(_distinct(near[0][2], s[2], c.min_parallax_deg) for s in near[1:]):
-        raise InitFailure(
-            f"the homography's two decompositions fit equally ({near[0][0]} and {near[1][0]} points in front of both "
-            "cameras): waiting for a pair that tells them apart (points off the plane, or a move across it)"
+    best_front = max(int(d.front.sum()) for d in ds)
+    cap = c.gric_lambda3 * 2.0
+    near = sorted(
+        (d for d in ds if d.front.sum() >= c.homography_ambiguity_ratio * best_front), key=lambda d: d.cost(cap)
+    )
+    rivals = [d for d in near[1:] if _distinct(near[0].T, d.T, c.min_parallax_deg)]
+    if not rivals or c.homography_resolve_ambiguity:
+        return near[0].T
+    a, b = near[0], rivals[0]
+    ka, kb = _evidence(a, b, c.inlier_sigmas), _evidence(b, a, c.inlier_sigmas)
+    if _sign_test(max(ka, kb), min(ka, kb)) > c.homography_ambiguity_alpha:
+        raise AmbiguousPair(
+            f"the homography's two decompositions fit equally ({int(a.front.sum())} and {int(b.front.sum())} points "
+            f"in front of both cameras, {ka} and {kb} matches for one against the other): waiting for a pair that "
+            "tells them apart (points off the plane, or a move across it)"
         )
-    return near[0][2]
+    return a.T if ka >= kb else b.T
+
+
+def _evidence(a: _Decomposition, b: _Decomposition, inlier_sigmas: float) -> int:
+    """Matches that favour decomposition a over b and not b over a: in front of both cameras under a only, or
+    within the inlier band (``inlier_sigmas`` σ) of a's E only. A point on the plane fits both and counts for
+    neither."""
+    t2 = inlier_sigmas**2
+    for_a = (a.front & ~b.front) | ((a.e2 < t2) & (b.e2 >= t2))
+    for_b = (b.front & ~a.front) | ((b.e2 < t2) & (a.e2 >= t2))
+    return int((for_a & ~for_b).sum())
+
+
+def _sign_test(k: int, m: int) -> float:
+    """One-sided sign test: the chance of k or more of k + m matches favouring one side when each favours either
+    with probability ½ (no information)."""
+    n = k + m
+    return sum(math.comb(n, j) for j in range(k, n + 1)) / 2.0**n if n else 1.0
 
 
 def _distinct(A: np.ndarray, B: np.ndarray, tol_deg: float) -> bool:

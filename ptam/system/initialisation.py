@@ -110,7 +110,14 @@ class Initialisation:
         """The map exists (or the attempt failed): pose the frames seen since the first keyframe from their
         trails and resume tracking from the newest."""
         if built.mapper is None:
-            self._init_failed(self._init.trails.previous, index, ts, built.failure)
+            if built.ambiguous:  # the trails go on: the next frame's pair has more baseline
+                if not self._init.waiting:
+                    log.info("initialisation waits: %s", built.failure)
+                    self.stats.init_failures.append(built.failure)
+                self._init.waiting = True
+                self.last_failure = built.failure
+            else:
+                self._init_failed(self._init.trails.previous, index, ts, built.failure)
             return FrameOutcome(index, ts, INITIALISING, None)
         rot, self._init.rotation = self._init.rotation, None
         if rot is not None:

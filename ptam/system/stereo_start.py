@@ -23,7 +23,7 @@ from ..geometry import so3
 from ..image.pyramid import Pyramid
 from ..mapping.map_maker import MapMaker
 from ..mapping.stereo_init import StereoMap, init_from_stereo
-from ..mapping.two_view import InitFailure
+from ..mapping.two_view import AmbiguousPair, InitFailure
 from ..tracking.trails import TrailTracker
 from .priority import lower_priority
 from .rotation_start import RotationStart
@@ -50,6 +50,7 @@ class Built:
     trail_ids: np.ndarray
     first: tuple[int, float]  # (index, timestamp) of each keyframe
     second: tuple[int, float]
+    ambiguous: bool = False  # the pair fitted two poses equally: keep the trails, a later second keyframe may not
 
 
 class StereoStart:
@@ -60,6 +61,7 @@ class StereoStart:
         self.cfg = cfg
         self.trails = TrailTracker(cfg.init, cfg.image)
         self.first: tuple[Pyramid, float, int] | None = None
+        self.waiting = False  # a pair from these trails was ambiguous: later ones are tried, frame by frame
         self.history: deque[TrailFrame] = deque(maxlen=cfg.init.max_history_frames)
         self._pool = (
             ThreadPoolExecutor(1, "ptam-init", lower_priority, (cfg.system.background_nice,)) if background else None
@@ -82,6 +84,7 @@ class StereoStart:
         """Trails from a new first keyframe; returns how many started."""
         n = self.trails.start(pyramid)
         self.first = (pyramid, timestamp, index)
+        self.waiting = False
         self.history.clear()
         self._remember(index, timestamp)
         return n
@@ -115,7 +118,7 @@ class StereoStart:
         try:
             stereo = init_from_stereo(mapper, kf0, kf1, xy0, xy1)
         except InitFailure as e:
-            return Built(None, str(e), None, np.zeros(0, np.int64), first, second)
+            return Built(None, str(e), None, np.zeros(0, np.int64), first, second, isinstance(e, AmbiguousPair))
         return Built(mapper, None, stereo, ids[stereo.trail_rows], first, second)
 
     def finished(self) -> Built | None:
