@@ -12,11 +12,11 @@ restarts initialisation: too few trails, too few inliers, or too little parallax
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from scipy.special import bdtrc
 
 from ..geometry import se3, so3
 from ..geometry.triangulation import triangulate_two_view
@@ -127,9 +127,8 @@ def _evidence(a: _Decomposition, b: _Decomposition, inlier_sigmas: float) -> int
 
 def _sign_test(k: int, m: int) -> float:
     """One-sided sign test: the chance of k or more of k + m matches favouring one side when each favours either
-    with probability ½ (no information)."""
-    n = k + m
-    return sum(math.comb(n, j) for j in range(k, n + 1)) / 2.0**n if n else 1.0
+    with probability ½ (no information): the binomial tail P(X ≥ k) = ``bdtrc(k − 1, n, ½)``."""
+    return float(bdtrc(k - 1, k + m, 0.5)) if k > 0 else 1.0
 
 
 def _distinct(A: np.ndarray, B: np.ndarray, tol_deg: float) -> bool:
