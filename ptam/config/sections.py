@@ -144,6 +144,7 @@ class InitConfig:
     trail_half_patch: Annotated[int, Range("[1, inf)")]
     trail_search_radius_px: Annotated[int, Range("[1, inf)")]
     trail_global_gain: bool
+    trail_rotation_prior: bool
     trail_max_ssd: Annotated[int, Range("[0, inf)")]
     trail_backward_tolerance_px2: Annotated[int, Range("[0, inf)")]
     min_trails: Annotated[int, Range("[0, inf)")]

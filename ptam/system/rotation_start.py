@@ -159,6 +159,16 @@ class RotationStart:
         """Frame ``index`` is the newest tracked with good quality (the tracker's state is this frame's)."""
         return bool(self._tracked) and self._tracked[-1][0] == index
 
+    def turned(self, from_index: int, to_index: int) -> np.ndarray | None:
+        """The rotation R (3×3) from frame ``from_index``'s camera to ``to_index``'s, if both are the newest two
+        tracked with good quality, else None."""
+        if len(self._tracked) < 2:
+            return None
+        (i, T_i), (j, T_j) = self._tracked[-2], self._tracked[-1]
+        if (i, j) != (from_index, to_index):
+            return None
+        return T_j[:3, :3] @ T_i[:3, :3].T
+
     def carried(self, from_index: int, to_index: int, T_from: np.ndarray) -> np.ndarray | None:
         """Pose ``T_from`` of frame ``from_index`` carried to frame ``to_index`` by the rotation tracked between
         them (both tracked with good quality; a short interval, in which the rotation-only model holds), or None."""

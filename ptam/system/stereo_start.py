@@ -94,7 +94,12 @@ class StereoStart:
         self.history.clear()
 
     def advance(self, pyramid: Pyramid, index: int, timestamp: float) -> int:
-        n = self.trails.advance(pyramid)
+        """Follow the trails into frame ``index``: around where the rotation the panorama tracked from the previous
+        trail frame moves them (``init.trail_rotation_prior``), or where they were."""
+        R = None
+        if self.rotation is not None and self.cfg.init.trail_rotation_prior and self.history:
+            R = self.rotation.turned(self.history[-1].index, index)
+        n = self.trails.advance(pyramid, None if R is None else self.trails.rotated(self.camera, R))
         self._remember(index, timestamp)
         return n
 

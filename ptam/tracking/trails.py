@@ -9,6 +9,12 @@ ptam: the searches compensate a frame-wide change of brightness (auto exposure, 
 drops nearly every trail when the image brightens by 10 %): the gain of a frame against the first keyframe is
 the median ratio of the trails' patch means, measured on the previous frame for the forward search and on the
 matches found for the backward one. ``init.trail_global_gain: false`` is PTAM's plain SSD.
+
+ptam: PTAM searches each trail around its last position, so trails survive only image motion within the search
+radius (10 px) per frame; at 10 fps, or under a hand's shake, all die within a frame or two and initialisation
+never starts. Where a rotation between the two frames is known (the panorama tracked from the first frame,
+Gauglitz §4.3; Agility §6's motion prior), the forward search is centred where that rotation moves the trail, and
+the backward search where the inverse of the same shift puts the match: with no rotation both are PTAM's.
 """
 
 from __future__ import annotations
@@ -16,6 +22,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from ..camera.model import CameraModel
 from ..image.fast import fast_corners
 from ..image.pyramid import Pyramid
 from ..image.shi_tomasi import shi_tomasi
@@ -66,17 +73,19 @@ class TrailTracker:
         valid = den > 0
         return float(np.median(num[valid] / den[valid])) if valid.any() else self.gain
 
-    def advance(self, pyramid: Pyramid) -> int:
-        """Follow every trail into ``pyramid``; drops the trails that fail. Returns the number kept."""
+    def advance(self, pyramid: Pyramid, predicted: np.ndarray | None = None) -> int:
+        """Follow every trail into ``pyramid``, searched around ``predicted`` (T, 2) int32 pixels (default: where
+        each trail was); drops the trails that fail. Returns the number kept."""
         if self.first is None or self.previous is None or self.n_trails == 0:
             return 0
         c = self.cfg
+        centre = self.current_xy if predicted is None else predicted
         sums = cv2.integral(pyramid.levels[0]) if c.trail_global_gain else None
         fwd, ok = minipatch_find(
             self.first.levels[0],
             self.start_xy,
             pyramid.levels[0],
-            self.current_xy,
+            centre,
             pyramid.corners[0],
             pyramid.row_lut[0],
             c.trail_search_radius_px,
@@ -89,7 +98,7 @@ class TrailTracker:
             pyramid.levels[0],
             fwd,
             self.previous.levels[0],
-            fwd,
+            fwd + (self.current_xy - centre),  # where the match came from, by the predicted shift
             self.previous.corners[0],
             self.previous.row_lut[0],
             c.trail_search_radius_px,
@@ -107,6 +116,20 @@ class TrailTracker:
         self.gain = gain
         self.frames += 1
         return self.n_trails
+
+    def rotated(self, camera: CameraModel, R: np.ndarray) -> np.ndarray:
+        """Where the rotation ``R`` (previous frame's camera to the next's) moves each trail's last position, as
+        int32 pixels, clamped to within a search radius of the image (a trail whose ray turns behind the camera
+        stays where it was)."""
+        xy = self.current_xy
+        rays = camera.unproject_rays(xy.astype(np.float64)) @ R.T
+        ahead = rays[:, 2] > 0.0
+        uv = xy.astype(np.float64)
+        uv[ahead] = camera.project(rays[ahead])
+        uv[~np.isfinite(uv).all(axis=1)] = xy[~np.isfinite(uv).all(axis=1)]
+        r = self.cfg.trail_search_radius_px
+        uv = np.clip(uv, -r - 1, [camera.width + r, camera.height + r])
+        return np.rint(uv).astype(np.int32)
 
     def median_disparity(self) -> float:
         if self.n_trails == 0:
