@@ -240,7 +240,8 @@ class Bundle:
                 continue
             t = time.perf_counter()
             dcam, dpts, dedg = step
-            if dcam @ dcam + np.vdot(dpts, dpts) + s.edg.squared_update(dedg) < cfg.converge_squared_update:
+            sq = dcam @ dcam + np.vdot(dpts, dpts)  # the edgelets' share (≥ 0) only where it can decide
+            if sq < cfg.converge_squared_update and sq + s.edg.squared_update(dedg) < cfg.converge_squared_update:
                 lm.converged = True
             trial, new_cost = self._trial(s, step, n_flagged)
             if new_cost > cost:
