@@ -10,13 +10,17 @@ import pytest
 from ptam.bench.accuracy import criteria
 from ptam.camera import load_camera
 from ptam.capture import open_dataset
+from ptam.capture.frame import Frame
 from ptam.eval.score import score_trajectory
 from ptam.eval.tum_io import read_tum
 from ptam.geometry import se3, so3
+from ptam.image.pyramid import Pyramid
 from ptam.mapping.two_view import rotation_explains
 from ptam.system import System, run_dataset
+from ptam.system.rotation_start import RotationStart
 from ptam.vocabulary import RunMode
 from tests.support.cameras import CAMERAS
+from tests.support.views import texture, turned_view
 
 T_MAX_REL = 0.02  # the rotation-only model's t_max / depth: a 10 px fine radius at f = 500 px
 
@@ -159,3 +163,22 @@ def test_a_panorama_is_joined_to_the_first_map_only_where_the_map_confirms_it(cf
     rot._anchor = (1, T_pano)
     first_map = build_gt_map(scene, cfg, kf_every=1, frames=[1]).snapshot()  # the truth, from the second frame
     assert rot.agrees(1, se3.inv(T_wc[1]), first_map) is joined
+
+
+def test_the_rotation_between_frames_is_taken_within_one_panorama(cfg):
+    """``RotationStart.turned`` (the trails' motion prior): the rotation between two frames tracked in the panorama;
+    after a new panorama begins at a frame that was also tracked in the old one (trails restarting where a
+    translation withheld its pose), the next frame's rotation is taken from the new panorama's identity, not from
+    the old panorama's pose of that frame (1.2° off here)."""
+    camera = CAMERAS["pinhole"]
+    img = texture()
+    R = [so3.exp(np.radians([0.05 * i, 0.6 * i, 0.02 * i])) for i in range(4)]
+    views = [turned_view(camera, img, r) for r in R]
+    rs = RotationStart(camera, cfg, background=False)
+    for i in range(3):
+        rs.follow(Frame(i, i / 30.0, views[i]), Pyramid.build(views[i], cfg.image))
+    assert np.degrees(np.linalg.norm(so3.log(rs.turned(1, 2) @ (R[2] @ R[1].T).T))) < 0.01
+    assert rs.turned(0, 2) is None  # not the newest two
+    rs.begin(Pyramid.build(views[2], cfg.image), 2, 2 / 30.0)
+    rs.follow(Frame(3, 3 / 30.0, views[3]), Pyramid.build(views[3], cfg.image))
+    assert np.degrees(np.linalg.norm(so3.log(rs.turned(2, 3) @ (R[3] @ R[2].T).T))) < 0.01

@@ -4,7 +4,6 @@ the image moves farther than the search radius in a frame; searched where the tr
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
 import pytest
 
@@ -14,21 +13,7 @@ from ptam.image.pyramid import Pyramid
 from ptam.tracking.trails import TrailTracker
 from ptam.vocabulary import RunMode
 from tests.support.cameras import CAMERAS
-
-
-def _texture(h: int = 480, w: int = 640, seed: int = 0) -> np.ndarray:
-    """Blurred noise with strong contrast: a corner-rich image."""
-    rng = np.random.default_rng(seed)
-    img = cv2.GaussianBlur(rng.integers(0, 256, (h, w)).astype(np.uint8), (0, 0), 3).astype(np.float64)
-    return np.clip((img - img.mean()) * 6 + 128, 0, 255).astype(np.uint8)
-
-
-def _turned(camera, img: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """The view of a camera turned by R (x₁ = R·x₀) from where ``img`` was taken, through the same lens."""
-    v, u = np.mgrid[0 : camera.height, 0 : camera.width]
-    rays = camera.unproject_rays(np.stack([u, v], axis=-1).reshape(-1, 2).astype(np.float64)) @ R  # R^T x₁
-    uv = camera.project(rays).reshape(camera.height, camera.width, 2).astype(np.float32)
-    return cv2.remap(img, uv[..., 0], uv[..., 1], cv2.INTER_LINEAR, borderValue=0)
+from tests.support.views import texture, turned_view
 
 
 @pytest.mark.parametrize("lens", ["pinhole", "fov"])
@@ -39,8 +24,8 @@ def test_trails_follow_a_turn_past_the_search_radius_by_the_tracked_rotation(cfg
     resampled image; measured: 0.41 px median, 0.93 px at most)."""
     camera = CAMERAS[lens]
     R = so3.exp(np.radians([0.5, 3.5, 0.3]))
-    img0 = _texture()
-    p0, p1 = Pyramid.build(img0, cfg.image), Pyramid.build(_turned(camera, img0, R), cfg.image)
+    img0 = texture()
+    p0, p1 = Pyramid.build(img0, cfg.image), Pyramid.build(turned_view(camera, img0, R), cfg.image)
     plain, prior = TrailTracker(cfg.init, cfg.image), TrailTracker(cfg.init, cfg.image)
     n = plain.start(p0)
     assert prior.start(p0) == n > 500
@@ -61,7 +46,7 @@ def test_trails_follow_a_turn_past_the_search_radius_by_the_tracked_rotation(cfg
 def test_a_rotation_prior_of_no_turn_is_ptams_search(cfg):
     """The identity rotation predicts every trail where it was: the same trails, found at the same pixels."""
     camera = CAMERAS["pinhole"]
-    img0 = _texture(seed=1)
+    img0 = texture(seed=1)
     shifted = np.roll(img0, (3, -4), axis=(0, 1))
     p0, p1 = Pyramid.build(img0, cfg.image), Pyramid.build(shifted, cfg.image)
     a, b = TrailTracker(cfg.init, cfg.image), TrailTracker(cfg.init, cfg.image)

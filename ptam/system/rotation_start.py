@@ -79,6 +79,8 @@ class RotationStart:
         self.tracker.reset()
         self.tracker.set_pose(T)
         self.poses.append((index, timestamp, T))
+        self._tracked.clear()  # poses tracked before are in another panorama's frame
+        self._tracked.append((index, T))
         return T
 
     def follow(self, frame, pyramid: Pyramid) -> TrackResult | None:
