@@ -126,7 +126,8 @@ class TrailTracker:
         ahead = rays[:, 2] > 0.0
         uv = xy.astype(np.float64)
         uv[ahead] = camera.project(rays[ahead])
-        uv[~np.isfinite(uv).all(axis=1)] = xy[~np.isfinite(uv).all(axis=1)]
+        lost = ~np.isfinite(uv).all(axis=1)
+        uv[lost] = xy[lost]
         r = self.cfg.trail_search_radius_px
         uv = np.clip(uv, -r - 1, [camera.width + r, camera.height + r])
         return np.rint(uv).astype(np.int32)
