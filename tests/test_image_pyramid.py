@@ -6,13 +6,7 @@ from ptam.config import default_config
 from ptam.errors import ConfigError, InputError
 from ptam.image.fast import fast_corners
 from ptam.image.pyramid import Pyramid, half_sample, level_to_zero, row_lut, zero_to_level
-
-
-def _texture(h=480, w=640, seed=0):
-    """Blurred noise with strong contrast: a corner-rich test image."""
-    rng = np.random.default_rng(seed)
-    img = cv2.GaussianBlur(rng.integers(0, 256, (h, w)).astype(np.uint8), (0, 0), 3).astype(np.float64)
-    return np.clip((img - img.mean()) * 6 + 128, 0, 255).astype(np.uint8)
+from tests.support.views import texture
 
 
 def test_half_sample_matches_rounded_box_mean_and_drops_odd_edge():
@@ -28,7 +22,7 @@ def test_half_sample_matches_rounded_box_mean_and_drops_odd_edge():
 
 def test_pyramid_sizes_values_corners_and_row_lut():
     cfg = default_config().image
-    img = _texture()
+    img = texture()
     pyr = Pyramid.build(img, cfg)
     assert [im.shape for im in pyr.levels] == [(480, 640), (240, 320), (120, 160), (60, 80)]
     assert np.array_equal(pyr.levels[0], img) and pyr.levels[0] is not img
@@ -49,7 +43,7 @@ def test_pyramid_sizes_values_corners_and_row_lut():
 
 
 def test_fast_counts_on_textured_and_flat_images():
-    img = _texture(seed=3)
+    img = texture(seed=3)
     raw = fast_corners(img, 10)
     nms = fast_corners(img, 10, nonmax=True)
     # FAST-9 at threshold 10 on this high-contrast texture: dense blobs without NMS, ~20x fewer with NMS.
