@@ -5,8 +5,9 @@ import pytest
 
 from ptam.geometry import se3
 from ptam.geometry.se3_kernels import se3_exp
+from ptam.geometry.tukey_kernels import tukey_sigma_sq
 from ptam.tracking.patch_blur import smear_axes
-from ptam.tracking.pose_kernels import normal_equations, pose_irls, tukey_sigma_sq
+from ptam.tracking.pose_kernels import normal_equations, pose_irls
 from tests.reference.pose import normal_equations_ref, pose_irls_ref, tukey_sigma_sq_ref
 from tests.support.cameras import CAMERAS
 

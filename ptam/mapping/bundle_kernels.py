@@ -24,10 +24,8 @@ from numba import njit
 
 from ..camera.camproj_kernels import project, project_jac
 
-# Tukey biweight constant for 95% efficiency and the median-absolute-deviation → σ factor for a Gaussian
-# (PTAM code, MEstimator.h ``Tukey::FindSigmaSquared``: σ = 1.4826·(1 + 5/(2n − 6))·√median(e²), c = 4.6851σ).
-TUKEY_C = 4.6851
-MAD_TO_SIGMA = 1.4826
+# PTAM code, MEstimator.h ``Tukey::FindSigmaSquared``: σ = 1.4826·(1 + 5/(2n − 6))·√median(e²), c = 4.6851σ.
+from ..geometry.tukey_kernels import MAD_TO_SIGMA, TUKEY_C
 
 
 # ---------------------------------------------------------------------------------------------------------

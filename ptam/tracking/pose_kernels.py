@@ -19,7 +19,7 @@ within ``t_max`` of ``c_ref`` after every iteration: Gauglitz et al. §6.2's [R|
 model relative to the previous keyframe.
 
 ``pose_irls_edgelets`` runs all iterations in one call (``pose_irls`` is it without edgelets); ``normal_equations``
-and ``tukey_sigma_sq`` are its parts.
+and ``ptam.geometry.tukey_kernels.tukey_sigma_sq`` are its parts.
 The ``*_ref`` functions are the numpy references.
 """
 
@@ -33,21 +33,7 @@ from numba import njit
 from ..camera.camproj_kernels import project_jac
 from ..geometry.cholesky_kernels import cholesky_solve
 from ..geometry.se3_kernels import se3_exp
-
-MAD_TO_SIGMA = 1.4826  # median absolute deviation -> standard deviation of a normal distribution
-TUKEY_C = 4.6851  # Tukey's constant for 95% efficiency under Gaussian noise
-
-
-@njit(nogil=True, cache=True)
-def tukey_sigma_sq(err_sq, min_sigma):
-    """Tukey c² from scaled squared errors (n,), floored at min_sigma²."""
-    n = err_sq.shape[0]
-    if n == 0:
-        return min_sigma * min_sigma
-    med = np.partition(err_sq, n // 2)[n // 2]
-    small_sample = 1.0 + 5.0 / max(2 * n - 6, 1)
-    c = TUKEY_C * MAD_TO_SIGMA * small_sample * math.sqrt(med)
-    return max(c * c, min_sigma * min_sigma)
+from ..geometry.tukey_kernels import tukey_sigma_sq, tukey_weight
 
 
 @njit(nogil=True, cache=True, inline="always")
@@ -261,10 +247,10 @@ def pose_irls_edgelets(
             c2 = min(c2, override_sigma_sq)
         for k in range(n):
             e2 = smeared_sq(r[k, 0], r[k, 1], smear[k, 0], smear[k, 1]) * inv_sigma[k] * inv_sigma[k]
-            w[k] = _tukey_weight(e2, c2) if valid[k] else 0.0
+            w[k] = tukey_weight(e2, c2) if valid[k] else 0.0
         for k in range(m):
             e2 = er[k] * er[k] * e_inv_sigma[k] * e_inv_sigma[k]
-            ew[k] = _tukey_weight(e2, c2) if e_valid[k] else 0.0
+            ew[k] = tukey_weight(e2, c2) if e_valid[k] else 0.0
         H, g = normal_equations(J, r, inv_sigma, smear, w)
         for k in range(m):
             wk = ew[k] * e_inv_sigma[k] * e_inv_sigma[k]
@@ -299,11 +285,3 @@ def _linear_update(uv, J, mu):
             for b in range(6):
                 s += J[k, a, b] * mu[b]
             uv[k, a] += s
-
-
-@njit(nogil=True, cache=True)
-def _tukey_weight(e2, c2):
-    if e2 > c2:
-        return 0.0
-    q = 1.0 - e2 / c2
-    return q * q

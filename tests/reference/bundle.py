@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ptam.geometry import se3
-from ptam.mapping.bundle_kernels import MAD_TO_SIGMA, TUKEY_C
+from ptam.geometry.tukey_kernels import MAD_TO_SIGMA, TUKEY_C
 
 
 # ---------------------------------------------------------------------------------------------------------
