@@ -110,6 +110,7 @@ class RotationConfig:
     blur_sigma: Annotated[float, Range("(0, inf)")]
     iterations: Annotated[int, Range("[1, inf)")]
     intensity_offset: bool
+    robust: bool
     keep_axial_velocity: bool
     sample_radius_px: Annotated[float, Range("(0, inf)")]
 

@@ -66,11 +66,18 @@ class SmallBlurryImage:
         return cls.from_small(small_image(pyramid), sigma)
 
     def align_to(
-        self, template: SmallBlurryImage, iterations: int, with_offset: bool, start: np.ndarray | None = None
+        self,
+        template: SmallBlurryImage,
+        iterations: int,
+        with_offset: bool,
+        start: np.ndarray | None = None,
+        robust: bool = False,
     ) -> Alignment:
-        """ESM over SE(2) (and an intensity offset) of this image onto ``template`` (Agility §6, §7)."""
+        """ESM over SE(2) (and an intensity offset) of this image onto ``template`` (Agility §6, §7); ``robust``:
+        Tukey-weighted (``esm_se2``)."""
         p0 = np.zeros(4) if start is None else np.asarray(start, np.float64)
-        p, score, its = esm_se2(self.image, template.image, template.grad, p0, int(iterations), bool(with_offset))
+        args = (p0, int(iterations), bool(with_offset), bool(robust))
+        p, score, its = esm_se2(self.image, template.image, template.grad, *args)
         return Alignment(p, float(score), int(its))
 
     def ssd(self, other: SmallBlurryImage) -> float:

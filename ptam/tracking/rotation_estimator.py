@@ -4,7 +4,9 @@ Each frame's small blurry image (σ = ``rotation.blur_sigma``) is aligned to the
 SE(2) (``rotation.iterations``); the image motion is converted to the best-fit 3-D camera rotation through a
 few virtual sample points about the image centre, unprojected through the camera model before and after the
 image motion (a procedure like the unscented transform, §6). The rotation replaces the motion model's
-(§8; :meth:`ptam.tracking.motion_model.MotionModel.predict`).
+(§8; :meth:`ptam.tracking.motion_model.MotionModel.predict`). With ``rotation.robust`` the alignment is
+Tukey-weighted, so that something moving before the camera on its own (§9.3 names a hand) does not turn the
+estimate after it.
 """
 
 from __future__ import annotations
@@ -65,6 +67,6 @@ class RotationEstimator:
         if previous is None:
             self.last = None
             return None
-        self.last = current.align_to(previous, c.iterations, c.intensity_offset)
+        self.last = current.align_to(previous, c.iterations, c.intensity_offset, robust=c.robust)
         R = rotation_from_se2(self.camera, self.last.params, current.image.shape, small_level(pyramid), self.offsets)
         return so3.log(R)

@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 
 from ptam.image.esm_kernels import _PIVOT_EPS
+from tests.reference.pose import tukey_sigma_sq_ref
 
 
-def esm_se2_ref(image, template, template_grad, params0, iterations, with_offset):
+def esm_se2_ref(image, template, template_grad, params0, iterations, with_offset, robust=False):
     """Numpy reference of :func:`esm_se2`: the same iteration with array operations."""
     image = np.asarray(image, np.float64)
     template = np.asarray(template, np.float64)
@@ -39,7 +40,9 @@ def esm_se2_ref(image, template, template_grad, params0, iterations, with_offset
         Jm = np.stack([gx, gy, -(ys - cy) * gx + (xs - cx) * gy, np.ones((h, w))], axis=-1)[inner][:, :n]
         r = (warped - template + p[3])[inner]
         score = float(r @ r)
-        A = Jm.T @ Jm
+        c2 = tukey_sigma_sq_ref(r * r, 0.0) if robust else 0.0
+        wt = np.where(r * r > c2, 0.0, (1.0 - r * r / c2) ** 2) if c2 > 0 else np.ones(len(r))
+        A = Jm.T @ (wt[:, None] * Jm)
         if not A.size or np.max(np.diag(A)) <= 0:
             break
         try:
@@ -48,7 +51,7 @@ def esm_se2_ref(image, template, template_grad, params0, iterations, with_offset
             break
         if np.min(np.diag(L)) ** 2 <= _PIVOT_EPS * np.max(np.diag(A)):
             break
-        du = np.linalg.solve(A, Jm.T @ r)
+        du = np.linalg.solve(A, Jm.T @ (wt * r))
         p[0] -= c * du[0] - s * du[1]
         p[1] -= s * du[0] + c * du[1]
         p[2] -= du[2]
