@@ -135,12 +135,17 @@ def test_blurred_frames_of_poor_quality_are_tracked_on_but_not_reported(cfg):
     finds texture but is 200-300 mm off. Reported, those poses are glitches; withheld (the default, except under
     rapid motion, Agility §8), the frames count as not tracked, the tracker goes on from them, and far fewer
     wrong poses are reported. PTAM's point tracking shows it (no edgelets, every patch searched however blurred and
-    measured as if sharp): the
-    blur-aware default tracks desk_blur's sweeps right and leaves no such frames (test_edgelet_tracking)."""
+    measured as if sharp, and Agility §6's least-squares rotation prior): the blur-aware default tracks desk_blur's
+    sweeps right and leaves no such frames (test_edgelet_tracking)."""
     d = sequence("desk_blur")
     crit = criteria(cfg)
     cfg = cfg.replace(
-        **{"edgelets.enabled": False, "tracker.blur_gate_patch_widths": float("inf"), "tracker.smear_variance": 0.0}
+        **{
+            "edgelets.enabled": False,
+            "tracker.blur_gate_patch_widths": float("inf"),
+            "tracker.smear_variance": 0.0,
+            "rotation.robust": False,
+        }
     )
     system = run_dataset(d, cfg.replace(**{"system.report_poor_poses": True}), mode=RunMode.SYNC)
     reported = score_trajectory(d / "groundtruth.txt", system.trajectory, criteria=crit)
@@ -153,15 +158,21 @@ def test_blurred_frames_of_poor_quality_are_tracked_on_but_not_reported(cfg):
 
 @pytest.mark.slow
 def test_integer_matches_weighted_along_their_smear_carry_points_through_desk_blur(cfg):
-    """PTAM's point tracking on desk_blur's sweeps (no edgelets, every patch searched): its integer matches land on
-    whichever corner a smear left, and weighted as sharp (σ = 2^level both ways) they put a fifth of the frames off
-    (measured: 78.7 % correct, 4 glitches, 23 mm). With ``tracker.smear_variance`` 1/12 (the variance of a position
+    """PTAM's point tracking on desk_blur's sweeps (no edgelets, every patch searched, Agility §6's least-squares
+    rotation prior): its integer matches land on whichever corner a smear left, and weighted as sharp (σ = 2^level
+    both ways) they put a fifth of the frames off (measured: 78.7 % correct, 4 glitches, 23 mm; with the Tukey-weighted
+    rotation prior 91.7 %, 4 glitches, 11.8 mm). With ``tracker.smear_variance`` 1/12 (the variance of a position
     uniform over the predicted smear, along it only) the same tracker keeps 96.1 % of the frames right, with no
     glitch and a 1.9 mm ATE."""
     d = sequence("desk_blur")
     crit = criteria(cfg)
     ptam = cfg.replace(
-        **{"edgelets.enabled": False, "tracker.blur_gate_patch_widths": float("inf"), "tracker.smear_variance": 0.0}
+        **{
+            "edgelets.enabled": False,
+            "tracker.blur_gate_patch_widths": float("inf"),
+            "tracker.smear_variance": 0.0,
+            "rotation.robust": False,
+        }
     )
     runs = {}
     for v in (0.0, 1.0 / 12.0):
