@@ -1,4 +1,5 @@
-"""Tukey's biweight M-estimator, shared by every robust fit (PTAM §5.4, §6.3; Agility §6 with clutter).
+"""Tukey's biweight M-estimator, shared by the robust fits: the pose update (PTAM §5.4), bundle adjustment (§6.3)
+and the rotation estimator's image alignment against moving clutter (Agility §6, §9.3).
 
 The cut-off c is Tukey's constant times a robust scale: the median of the squared errors taken as a normal
 distribution's (the median absolute deviation times 1.4826), with a small-sample correction; a residual beyond c
