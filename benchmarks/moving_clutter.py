@@ -29,7 +29,7 @@ from ptam.bench.accuracy import criteria
 from ptam.config import load_config
 from ptam.eval.associate import associate
 from ptam.eval.correctness import correctness
-from ptam.eval.score import score_trajectory
+from ptam.eval.score import score_poses
 from ptam.eval.tum_io import read_tum
 from ptam.synthetic import ensure_sequence
 
@@ -96,7 +96,7 @@ def main(argv=None) -> int:
         t_gt, T_gt = read_tum(copy / "groundtruth.txt")
         t, T = read_tum(traj)
     crit = criteria(cfg)
-    s = score_trajectory(seq / "groundtruth.txt", list(zip(t, T)), cfg.eval.max_time_diff_s, crit)
+    s = score_poses(t_gt, T_gt, list(zip(t, T)), cfg.eval.max_time_diff_s, crit)
     print(
         f"{a.scene} {a.mode}, {len(set(in_pass.values()))} passes of {a.frames_per_pass} frames: ATE "
         f"{1e3 * s.ate_rmse_m:.2f} mm, correct {100 * s.correct_fraction:.1f} %, glitches {s.glitches}"
