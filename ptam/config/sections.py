@@ -111,6 +111,7 @@ class RotationConfig:
     iterations: Annotated[int, Range("[1, inf)")]
     intensity_offset: bool
     robust: bool
+    motion_model_fallback: bool
     keep_axial_velocity: bool
     sample_radius_px: Annotated[float, Range("(0, inf)")]
 

@@ -24,9 +24,12 @@ pose along the pan, and the default is PTAM's.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from ..camera import CameraModel
+from ..patch.finder import PatchMatches
 from .patch_blur_kernels import patch_smears
 
 
@@ -66,3 +69,14 @@ def smear_axes(smear: np.ndarray, level: np.ndarray, variance: float) -> np.ndar
 def searchable(blur: np.ndarray, level: np.ndarray, patch_size: int, max_widths: float) -> np.ndarray:
     """Patches whose expected blur at their search ``level`` is at most ``max_widths`` patch widths."""
     return blur <= max_widths * patch_size * np.exp2(level)
+
+
+def unless_blurred(m: PatchMatches, extra: np.ndarray, cfg) -> PatchMatches:
+    """The refinement of the ``extra`` patches (below PTAM's sub-pixel levels) where most of them converged;
+    where more than ``fine_subpix_blur_fraction`` of their matches did not, the frame is blurred although the
+    motion prior was not rapid (the first frame of a sweep), and it keeps PTAM's integer matches for all of them
+    instead of losing those matches and, with them, its quality."""
+    failed = m.unconverged & extra
+    if failed.sum() <= cfg.fine_subpix_blur_fraction * (failed | (m.found & extra)).sum():
+        return m
+    return dataclasses.replace(m, found=m.found | failed)

@@ -1,7 +1,9 @@
 """The tracker: PTAM §5's per-frame procedure against a map snapshot.
 
 1. pyramid + FAST corners (keyframe preparation), prior pose from the motion model (§5.1), its rotation
-   replaced by the small-blurry-image rotation estimate when enabled (Agility §6, §8);
+   replaced by the small-blurry-image rotation estimate when enabled (Agility §6, §8); a frame that prior leaves
+   in doubt (rapid, or not good by §5.6's check) is tracked again from the motion model's own prior, and the pass
+   whose pose keeps more of its patches is used (``rotation.motion_model_fallback``, :mod:`.tracking_pass`);
 2. project all good map points, keep the potentially visible set, compute each one's warp and search level
    (§5.2, §5.3); drop the patches the expected motion blur smears past recognition (:mod:`.patch_blur`);
 3.–4. coarse stage (§5.5): up to ``coarse_points`` points at the coarsest search levels, searched over a large
@@ -23,7 +25,6 @@ work is vectorised or in numba kernels; the Python code here handles whole array
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -33,13 +34,13 @@ from ..errors import InputError
 from ..geometry import se3
 from ..image.pyramid import Pyramid
 from ..map.snapshot import MapSnapshot
-from ..patch.finder import PatchFinder, PatchMatches
+from ..patch.finder import PatchFinder
 from ..patch.warp import PixelVectorCache, search_warps, template_matrices
 from ..vocabulary import PoseModel
 from .edgelet_tracking import EdgeletFrame, EdgeletTracker
 from .model_selection import select_pose_model
 from .motion_model import FrameGaps, MotionModel
-from .patch_blur import patch_blur, patch_smear, searchable, smear_axes
+from .patch_blur import patch_blur, patch_smear, searchable, smear_axes, unless_blurred
 from .pose_update import update_pose
 from .projection import project_points
 from .quality import GOOD, TrackingQuality
@@ -56,6 +57,7 @@ from .track_result import (
     Measurements,
     TrackResult,
 )
+from .tracking_pass import Candidates, TrackingPass
 
 
 class Tracker:
@@ -135,11 +137,27 @@ class Tracker:
         gap = self.gaps.frames(timestamp)
         late = gap > self.tcfg.motion_gap_frames  # frames were missed: the prior is less certain
         frames = min(gap, self.tcfg.motion_max_gap_frames)
-        T = self.motion.predict(T_start, rotation, self.cfg.rotation.keep_axial_velocity, frames)
         force, self._force_coarse = self._force_coarse or late, False
+        keep = self.cfg.rotation.keep_axial_velocity
+        run = self._stages(pyramid, snapshot, self.motion.predict(T_start, rotation, keep, frames), force, clock)
+        if rotation is not None and self.cfg.rotation.motion_model_fallback and (run.rapid or not run.good(self.tcfg)):
+            # Agility §9.3: clutter (a hand) can turn the rotation estimate; PTAM §5.2's prior is the other guess.
+            alt = self._stages(pyramid, snapshot, self.motion.predict(T_start, None, keep, frames), force, clock)
+            if alt.found_fraction > run.found_fraction:
+                run = alt
+            else:
+                self.motion.predict(T_start, rotation, keep, frames)
+        self._rapid, self._edges, self._model = run.rapid, run.edges, run.model
+        T, batch, did_coarse, n_visible = run.T, run.batch, run.did_coarse, run.n_visible
+        res = self._finish(index, timestamp, pyramid, snapshot, T_start, T, batch, did_coarse, n_visible, clock, frames)
+        return dataclasses.replace(res, in_doubt=force) if force else res
+
+    def _stages(self, pyramid, snapshot, T, force: bool, clock) -> TrackingPass:
+        """Steps 2-5 from the prior pose ``T`` (the motion model's prior set accordingly)."""
         self._rapid = self._prior_is_rapid()
         batch = Batch()
         self._edges = EdgeletFrame.empty()
+        self._model = PoseModel.GENERAL
         did_coarse = False
         n_visible = 0
         if snapshot is not None and snapshot.n_points and snapshot.n_keyframes:
@@ -147,12 +165,11 @@ class Tracker:
             n_visible = len(ids)
             ids, uv, level, M = self._unblurred(snapshot, T, ids, uv, level, M)
             order = np.lexsort((self._rng.random(len(ids)), -level))  # coarsest first, shuffled within a level
-            cand = _Candidates(ids[order], uv[order], level[order], M[order], np.zeros(len(ids), dtype=bool))
+            cand = Candidates(ids[order], uv[order], level[order], M[order], np.zeros(len(ids), dtype=bool))
             clock.lap(PROJECT)
             T, did_coarse = self._coarse_stage(pyramid, snapshot, cand, T, force, batch, clock)
             T = self._fine_stage(pyramid, snapshot, cand, T, did_coarse, batch, clock)
-        res = self._finish(index, timestamp, pyramid, snapshot, T_start, T, batch, did_coarse, n_visible, clock, frames)
-        return dataclasses.replace(res, in_doubt=force) if force else res
+        return TrackingPass(T, batch, did_coarse, n_visible, self._rapid, self._edges, self._model)
 
     def _coarse_stage(self, pyramid, snapshot, cand, T, force: bool, batch, clock) -> tuple[np.ndarray, bool]:
         """PTAM §5.5; code: only with more than coarse_min_points candidates at the two coarsest levels, and a
@@ -211,14 +228,13 @@ class Tracker:
         ptam_subpix = level >= cfg.fine_subpix_min_level
         # Every level, unless blur is expected (Agility §8): a smeared patch does not converge and would be lost.
         extra = ~ptam_subpix & (cfg.fine_subpix_all_levels and not self._rapid)
-        m = _unless_blurred(
+        m = unless_blurred(
             self._search(pyramid, snapshot, ids, level, cand.M[sel], uv_sel, radius, ptam_subpix | extra), extra, cfg
         )
         batch.add(ids, level, m, coarse=False)
         self._edges = self.edgelets.search(pyramid.levels[0], snapshot, T, self.motion)
         clock.lap(SEARCH)
         found, xy = batch.found(), batch.xy()
-        self._model = PoseModel.GENERAL
         with_edges = self.edgelets.usable(self._edges)
         if found.any() or with_edges:  # under heavy blur the edgelets alone may hold the pose (Agility §5)
             X, Xw = snapshot.features(batch.ids()[found])
@@ -376,25 +392,3 @@ class Tracker:
         elif self.scene_depth[0] is None and snapshot is not None and snapshot.n_keyframes:
             self.scene_depth = (float(np.mean([k.scene_depth_mean for k in snapshot.keyframes])), 0.0)
         return self.scene_depth
-
-
-@dataclass
-class _Candidates:
-    """The potentially visible points, coarsest first, and which of them a stage has taken."""
-
-    ids: np.ndarray
-    uv: np.ndarray
-    level: np.ndarray
-    M: np.ndarray
-    taken: np.ndarray
-
-
-def _unless_blurred(m: PatchMatches, extra: np.ndarray, cfg) -> PatchMatches:
-    """The refinement of the ``extra`` patches (below PTAM's sub-pixel levels) where most of them converged;
-    where more than ``fine_subpix_blur_fraction`` of their matches did not, the frame is blurred although the
-    motion prior was not rapid (the first frame of a sweep), and it keeps PTAM's integer matches for all of them
-    instead of losing those matches and, with them, its quality."""
-    failed = m.unconverged & extra
-    if failed.sum() <= cfg.fine_subpix_blur_fraction * (failed | (m.found & extra)).sum():
-        return m
-    return dataclasses.replace(m, found=m.found | failed)

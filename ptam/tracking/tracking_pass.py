@@ -1,0 +1,50 @@
+"""One pass of the tracker's stages (PTAM §5.2-§5.5) from one prior pose, and the candidates it searches.
+
+The tracker runs a second pass when the rotation estimate's prior (Agility §6) leaves the frame in doubt, from PTAM's
+motion-model prior (§5.2), and keeps the pass whose pose explains more of the patches it searched
+(``rotation.motion_model_fallback``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..vocabulary import PoseModel
+from .edgelet_tracking import EdgeletFrame
+from .track_result import Batch
+
+
+@dataclass
+class Candidates:
+    """The potentially visible points, coarsest first, and which of them a stage has taken."""
+
+    ids: np.ndarray
+    uv: np.ndarray
+    level: np.ndarray
+    M: np.ndarray
+    taken: np.ndarray
+
+
+@dataclass
+class TrackingPass:
+    """One pass of the stages from one prior: the pose, its measurements and what the pass decided."""
+
+    T: np.ndarray
+    batch: Batch
+    did_coarse: bool
+    n_visible: int
+    rapid: bool
+    edges: EdgeletFrame
+    model: PoseModel
+
+    @property
+    def found_fraction(self) -> float:
+        """The patches found and kept by the pose update (Tukey inliers) over those searched (Gauglitz §4.3)."""
+        inliers = self.batch.found() & (self.batch.weights > 0)
+        return float(inliers.sum()) / max(int(self.batch.attempted().sum()), 1)
+
+    def good(self, tcfg) -> bool:
+        """PTAM §5.6's check, on the inliers as the tracker's quality counts them."""
+        return self.found_fraction > tcfg.quality_good
