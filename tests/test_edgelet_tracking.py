@@ -148,6 +148,7 @@ def test_desk_blur_with_edgelets():
         "tracker.blur_gate_patch_widths=.inf",
         "tracker.smear_variance=0",
         "rotation.robust=false",
+        "rotation.motion_model_fallback=false",
     ]
     ptam, _ = _run(d, load_config(overrides=ptam_points))
     for name, s in (("edgelets", on), ("points only", points), ("PTAM's points", ptam)):

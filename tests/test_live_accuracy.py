@@ -135,8 +135,8 @@ def test_blurred_frames_of_poor_quality_are_tracked_on_but_not_reported(cfg):
     finds texture but is 200-300 mm off. Reported, those poses are glitches; withheld (the default, except under
     rapid motion, Agility §8), the frames count as not tracked, the tracker goes on from them, and far fewer
     wrong poses are reported. PTAM's point tracking shows it (no edgelets, every patch searched however blurred and
-    measured as if sharp, and Agility §6's least-squares rotation prior): the blur-aware default tracks desk_blur's
-    sweeps right and leaves no such frames (test_edgelet_tracking)."""
+    measured as if sharp, and Agility §6's least-squares rotation prior, used as §8 says): the blur-aware default
+    tracks desk_blur's sweeps right and leaves no such frames (test_edgelet_tracking)."""
     d = sequence("desk_blur")
     crit = criteria(cfg)
     cfg = cfg.replace(
@@ -145,6 +145,7 @@ def test_blurred_frames_of_poor_quality_are_tracked_on_but_not_reported(cfg):
             "tracker.blur_gate_patch_widths": float("inf"),
             "tracker.smear_variance": 0.0,
             "rotation.robust": False,
+            "rotation.motion_model_fallback": False,
         }
     )
     system = run_dataset(d, cfg.replace(**{"system.report_poor_poses": True}), mode=RunMode.SYNC)
@@ -172,6 +173,7 @@ def test_integer_matches_weighted_along_their_smear_carry_points_through_desk_bl
             "tracker.blur_gate_patch_widths": float("inf"),
             "tracker.smear_variance": 0.0,
             "rotation.robust": False,
+            "rotation.motion_model_fallback": False,
         }
     )
     runs = {}

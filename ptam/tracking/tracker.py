@@ -143,7 +143,7 @@ class Tracker:
         if rotation is not None and self.cfg.rotation.motion_model_fallback and (run.rapid or not run.good(self.tcfg)):
             # Agility §9.3: clutter (a hand) can turn the rotation estimate; PTAM §5.2's prior is the other guess.
             alt = self._stages(pyramid, snapshot, self.motion.predict(T_start, None, keep, frames), force, clock)
-            if alt.found_fraction > run.found_fraction:
+            if alt.holds(self.cfg) and alt.found_fraction > run.found_fraction:
                 run = alt
             else:
                 self.motion.predict(T_start, rotation, keep, frames)

@@ -40,10 +40,19 @@ class TrackingPass:
     model: PoseModel
 
     @property
+    def inliers(self) -> int:
+        """The patches found and kept by the pose update (Tukey inliers)."""
+        return int((self.batch.found() & (self.batch.weights > 0)).sum())
+
+    @property
     def found_fraction(self) -> float:
-        """The patches found and kept by the pose update (Tukey inliers) over those searched (Gauglitz §4.3)."""
-        inliers = self.batch.found() & (self.batch.weights > 0)
-        return float(inliers.sum()) / max(int(self.batch.attempted().sum()), 1)
+        """The inliers over the patches searched (Gauglitz §4.3)."""
+        return self.inliers / max(int(self.batch.attempted().sum()), 1)
+
+    def holds(self, cfg) -> bool:
+        """Good by PTAM's check, on at least as many inliers as a pose needs at all
+        (``model_selection.min_sfm_points``): a fraction of a handful of patches decides nothing."""
+        return self.good(cfg.tracker) and self.inliers >= cfg.model_selection.min_sfm_points
 
     def good(self, tcfg) -> bool:
         """PTAM §5.6's check, on the inliers as the tracker's quality counts them."""
