@@ -36,7 +36,7 @@ class TrackingQuality:
         suspend: bool = False,
         too_far: bool = False,
         too_few_inliers: bool = False,
-    ) -> str:
+    ) -> Quality:
         """``too_far``: the pose is far from every keyframe, which turns a poor frame bad (PTAM code: only a
         dodgy frame is checked with ``IsDistanceToNearestKeyFrameExcessive``; a good one stays good).
         ``too_few_inliers``: too few measurements support the pose for it to mean anything (Gauglitz §4.4)."""

@@ -146,10 +146,9 @@ class Tracker:
             if alt.holds(self.cfg) and alt.found_fraction > run.found_fraction:
                 run = alt
             else:
-                self.motion.predict(T_start, rotation, keep, frames)
+                self.motion.predict(T_start, rotation, keep, frames)  # the kept pass's prior again
         self._rapid, self._edges, self._model = run.rapid, run.edges, run.model
-        T, batch, did_coarse, n_visible = run.T, run.batch, run.did_coarse, run.n_visible
-        res = self._finish(index, timestamp, pyramid, snapshot, T_start, T, batch, did_coarse, n_visible, clock, frames)
+        res = self._finish(index, timestamp, pyramid, snapshot, T_start, run, clock, frames)
         return dataclasses.replace(res, in_doubt=force) if force else res
 
     def _stages(self, pyramid, snapshot, T, force: bool, clock) -> TrackingPass:
@@ -321,7 +320,8 @@ class Tracker:
             subpix,
         )
 
-    def _finish(self, index, timestamp, pyramid, snapshot, T_start, T, batch, did_coarse, n_visible, clock, frames):
+    def _finish(self, index, timestamp, pyramid, snapshot, T_start, run: TrackingPass, clock, frames):
+        T, batch, did_coarse, n_visible = run.T, run.batch, run.did_coarse, run.n_visible
         meas = Measurements(
             batch.ids(), batch.xy(), batch.level(), batch.found(), batch.subpix(), batch.weights > 0, batch.coarse()
         )
@@ -343,7 +343,7 @@ class Tracker:
         # inliers fall below the count that lets a model be estimated at all.
         ms = self.cfg.model_selection
         inl = meas.found & meas.inlier
-        few = ms.enabled and np.count_nonzero(inl) < ms.min_sfm_points
+        few = bool(ms.enabled and np.count_nonzero(inl) < ms.min_sfm_points)
         far = too_far and np.isfinite(dist)
         judged = np.bincount(meas.level[inl], minlength=self.n_levels) if ms.enabled else found_l
         quality = self.quality.assess(att_l, judged, suspend=rapid, too_far=far, too_few_inliers=few)
