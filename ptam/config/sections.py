@@ -179,6 +179,8 @@ class InitConfig:
 class MapperConfig:
     tracker_feedback_frames: Annotated[int, Range("[1, inf)")]
     kf_min_frames: Annotated[int, Range("[0, inf)")]
+    kf_min_frames_fps: Annotated[float, Range("[0, inf)")]
+    rapid_kf_corner_fraction: Annotated[float, Range("[0, inf]")]
     kf_max_queue: Annotated[int, Range("[1, inf)")]
     kf_dist_wiggle_mult: Annotated[float, Range("(0, inf)")]
     candidate_min_dist_px: Annotated[float, Range("[0, inf)")]

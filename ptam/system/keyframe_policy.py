@@ -42,11 +42,12 @@ class KeyframePolicy:
 
     def _maybe_add_keyframe(self, res, snapshot) -> bool:
         """PTAM §6.2 (code ``Tracker::NeedNewKeyFrame`` + ``MapMaker::NeedNewKeyFrame``); frames of rapid motion
-        are tracked but not used for map-building (Agility §10), nor are frames tracked from an approximate prior
-        (after a recovery or missed frames), nor a good frame right after poor ones: its prior was a doubtful pose,
-        and the tracker can settle on a wrong pose that still finds texture (desk_blur: a keyframe 300 mm off, the
-        first good frame after ten poor ones). Trust is earned as a relocalisation's is: ``reloc.confirm_frames``
-        good frames in a row. ``snapshot``: the map the frame was tracked against."""
+        are tracked but not used for map-building (Agility §10) where they show its blur (``_blurred``), nor are
+        frames tracked from an approximate prior (after a recovery or missed frames), nor a good frame right after
+        poor ones: its prior was a doubtful pose, and the tracker can settle on a wrong pose that still finds texture
+        (desk_blur: a keyframe 300 mm off, the first good frame after ten poor ones). Trust is earned as a
+        relocalisation's is: ``reloc.confirm_frames`` good frames in a row. ``snapshot``: the map the frame was
+        tracked against."""
         m = self.cfg.mapper
         kf = res.keyframe
         turned = self._view_turned(res)
@@ -59,7 +60,7 @@ class KeyframePolicy:
             due = turned or self._baseline_grown(res)
         if (
             self.localize_only
-            or res.rapid_motion
+            or (res.rapid_motion and not self._rapid_but_mappable(res, snapshot))
             or res.in_doubt
             or self._ray_check.doubting
             or self._good_streak < self.cfg.reloc.confirm_frames
@@ -132,13 +133,45 @@ class KeyframePolicy:
         measured against that keyframe too: in ``realtime`` the mapper can integrate it while the next frame is
         tracked against the snapshot before it, which then asked for a second keyframe a frame after the first
         (desk_pan: four such pairs in a run)."""
-        if frames_since_keyframe > self.cfg.mapper.kf_min_frames:
+        if frames_since_keyframe > self._min_frames():
             return True
         ms = self.cfg.model_selection
         if not (turned and ms.turn_keyframes_unspaced and self.mapper.keyframes_settled()):
             return False
         current = self.mapper.snapshot
         return snapshot is not None and current is not None and snapshot.n_keyframes == current.n_keyframes
+
+    def _min_frames(self) -> int:
+        """PTAM §6.2's twenty frames, counted at its 30 Hz camera (``mapper.kf_min_frames_fps``, PTAM §7): the
+        spacing paces the mapper in time, so a 10 fps source waits 7 frames, a 60 fps one 40. The rate is the
+        one the tracker sees (the median gap between the frames it tracked)."""
+        m = self.cfg.mapper
+        period = self.tracker.gaps.period
+        if not (m.kf_min_frames_fps > 0.0 and period):
+            return m.kf_min_frames
+        return round(m.kf_min_frames / (m.kf_min_frames_fps * period))
+
+    def _rapid_but_mappable(self, res, snapshot) -> bool:
+        """A rapid frame that may still become a keyframe: not ``_blurred``, and posed by more than the coarse
+        stage's few features (``tracker.coarse_points``, PTAM §5.5). The tracker expects blur under rapid motion
+        and searches only the coarser levels then; a pose from a dozen coarse patches is good by PTAM's
+        fraction but not good enough to place a keyframe (desk_corner at 10 fps, 6° a frame: one 70 mm off from
+        11 of 12 patches)."""
+        m = res.measurements
+        inliers = int(np.count_nonzero(m.found & m.inlier))
+        return inliers > self.cfg.tracker.coarse_points and not self._blurred(res, snapshot)
+
+    def _blurred(self, res, snapshot) -> bool:
+        """Whether a rapid frame shows the motion blur for which Agility §10 keeps it out of the map: blur "will
+        wipe the image clean of corner responses" (§1), so its level-0 FAST corners fall below
+        ``mapper.rapid_kf_corner_fraction`` of the nearest keyframe's. A rapid frame taken with a short exposure
+        (or at a low frame rate) is as sharp as a slow one, and a turn at 10 fps is rapid throughout: without
+        its keyframes the map cannot follow it."""
+        near = res.keyframe.nearest_keyframe
+        if snapshot is None or near < 0:
+            return True
+        corners = len(snapshot.keyframes[near].pyramid.corners[0])
+        return not len(res.pyramid.corners[0]) >= self.cfg.mapper.rapid_kf_corner_fraction * corners
 
     def _about_parent(self, T_cw: np.ndarray) -> np.ndarray:
         """A panorama keyframe's pose. Its rotation was estimated about the nearest keyframe's centre: when that

@@ -81,11 +81,16 @@ class FrameGaps:
     def reset(self) -> None:
         self._last = None
 
+    @property
+    def period(self) -> float | None:
+        """The frame period in seconds (the median of the recent gaps); None before the first gap."""
+        return float(np.median(self._gaps)) if self._gaps else None
+
     def frames(self, timestamp: float) -> float:
         last, self._last = self._last, timestamp
         if last is None or not timestamp > last:
             return 1.0
         dt = timestamp - last
-        period = float(np.median(self._gaps)) if self._gaps else dt
+        period = self.period or dt
         self._gaps.append(dt)
         return dt / period
