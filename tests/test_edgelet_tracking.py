@@ -111,7 +111,7 @@ def test_blurred_frame_search_and_pose(card_map):
     motion = MotionModel(cfg.tracker)
     motion.velocity = gamma / cfg.tracker.exposure_fraction
     tracker = EdgeletTracker(cam, cfg)
-    frame = tracker.search(image, snap, T_pred, motion)
+    frame = tracker.search(image, snap, T_pred, motion.exposure_motion(cfg.tracker.exposure_fraction))
     assert frame.n_attempted >= 0.6 * len(snap.edgelet_centre) and frame.n_found >= 0.8 * frame.n_attempted
     assert np.median(frame.blur[frame.found]) > 5.0  # px: eq. 10 sees the sideways motion
     Xc = se3.transform(T_mid, frame.centre[frame.found])

@@ -13,6 +13,7 @@ from ..camera.model import CameraModel
 from ..config import Config
 from ..geometry import se3
 from ..mapping.map_maker import KeyframeRequest, MapMaker
+from ..tracking.blur_evidence import shows_blur
 from ..tracking.tracker import Tracker
 from ..vocabulary import PoseModel, Quality, RunMode
 from .ray_check import RayCheck
@@ -42,7 +43,7 @@ class KeyframePolicy:
 
     def _maybe_add_keyframe(self, res, snapshot) -> bool:
         """PTAM §6.2 (code ``Tracker::NeedNewKeyFrame`` + ``MapMaker::NeedNewKeyFrame``); frames of rapid motion
-        are tracked but not used for map-building (Agility §10) where they show its blur (``_blurred``), nor are
+        are tracked but not used for map-building (Agility §10) unless sharp (``_rapid_but_mappable``), nor are
         frames tracked from an approximate prior (after a recovery or missed frames), nor a good frame right after
         poor ones: its prior was a doubtful pose, and the tracker can settle on a wrong pose that still finds texture
         (desk_blur: a keyframe 300 mm off, the first good frame after ten poor ones). Trust is earned as a
@@ -152,26 +153,16 @@ class KeyframePolicy:
         return round(m.kf_min_frames / (m.kf_min_frames_fps * period))
 
     def _rapid_but_mappable(self, res, snapshot) -> bool:
-        """A rapid frame that may still become a keyframe: not ``_blurred``, and posed by more than the coarse
-        stage's few features (``tracker.coarse_points``, PTAM §5.5). The tracker expects blur under rapid motion
-        and searches only the coarser levels then; a pose from a dozen coarse patches is good by PTAM's
-        fraction but not good enough to place a keyframe (desk_corner at 10 fps, 6° a frame: one 70 mm off from
-        11 of 12 patches)."""
+        """A rapid frame that may still become a keyframe. Agility §10 keeps rapid frames out of the map for their
+        motion blur; one whose image kept its corners (``tracking.blur_evidence``) was exposed too briefly to
+        blur, and a turn filmed at 10 fps is rapid throughout: without its keyframes the map cannot follow it.
+        It must also have been posed by more than the coarse stage's few features (``tracker.coarse_points``,
+        PTAM §5.5): a pose from a dozen coarse patches is good by PTAM's fraction but does not place a keyframe
+        (desk_corner at 10 fps, 6° a frame, with blur expected: one 70 mm off from 11 of 12 patches)."""
         m = res.measurements
         inliers = int(np.count_nonzero(m.found & m.inlier))
-        return inliers > self.cfg.tracker.coarse_points and not self._blurred(res, snapshot)
-
-    def _blurred(self, res, snapshot) -> bool:
-        """Whether a rapid frame shows the motion blur for which Agility §10 keeps it out of the map: blur "will
-        wipe the image clean of corner responses" (§1), so its level-0 FAST corners fall below
-        ``mapper.rapid_kf_corner_fraction`` of the nearest keyframe's. A rapid frame taken with a short exposure
-        (or at a low frame rate) is as sharp as a slow one, and a turn at 10 fps is rapid throughout: without
-        its keyframes the map cannot follow it."""
-        near = res.keyframe.nearest_keyframe
-        if snapshot is None or near < 0:
-            return True
-        corners = len(snapshot.keyframes[near].pyramid.corners[0])
-        return not len(res.pyramid.corners[0]) >= self.cfg.mapper.rapid_kf_corner_fraction * corners
+        sharp = not shows_blur(res.pyramid, snapshot, res.T_cw, self.cfg.tracker.blur_corner_fraction)
+        return inliers > self.cfg.tracker.coarse_points and sharp
 
     def _about_parent(self, T_cw: np.ndarray) -> np.ndarray:
         """A panorama keyframe's pose. Its rotation was estimated about the nearest keyframe's centre: when that

@@ -82,17 +82,16 @@ class EdgeletTracker:
         self._blurs = table_blurs(cfg.edgelets).astype(np.float64)
 
     def search(
-        self, image: np.ndarray, snapshot: MapSnapshot | None, T_cw: np.ndarray, motion, coarse: bool = False
+        self, image: np.ndarray, snapshot: MapSnapshot | None, T_cw: np.ndarray, gamma: np.ndarray, coarse: bool = False
     ) -> EdgeletFrame:
         """§5.1–§5.2 for the visible edgelets of ``snapshot`` in the full-size ``image`` at pose ``T_cw``;
-        ``motion``: the tracker's ``MotionModel`` (this frame's prior and the velocity); ``coarse``: only those
+        ``gamma``: γ_C, the camera's motion during the exposure (eq. 10, the tracker's); ``coarse``: only those
         with a search range of at least ``coarse_min_range_px`` (§8)."""
         if not self.ecfg.enabled or snapshot is None or not snapshot.edgelet_tables:
             return EdgeletFrame.empty()
         ids, table = self._table(snapshot, T_cw)
         ed = Edgelets(snapshot.edgelet_centre[ids], snapshot.edgelet_direction[ids], snapshot.edgelet_normal[ids])
         p, jacobian = project_edgelets_with_jacobian(self.camera, T_cw, ed)
-        gamma = motion.exposure_motion(self.cfg.tracker.exposure_fraction)
         blur = blur_lengths(jacobian, gamma)
         visible, radius, t_min = table.lookup(blur)
         h, w = image.shape

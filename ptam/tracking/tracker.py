@@ -5,7 +5,8 @@
    in doubt (rapid, or not good by §5.6's check) is tracked again from the motion model's own prior, and the pass
    whose pose keeps more of its patches is used (``rotation.motion_model_fallback``, :mod:`.tracking_pass`);
 2. project all good map points, keep the potentially visible set, compute each one's warp and search level
-   (§5.2, §5.3); drop the patches the expected motion blur smears past recognition (:mod:`.patch_blur`);
+   (§5.2, §5.3); drop the patches the expected motion blur smears past recognition (:mod:`.patch_blur`), none
+   under rapid motion when the image kept its corners (:mod:`.blur_evidence`);
 3.–4. coarse stage (§5.5): up to ``coarse_points`` points at the coarsest search levels, searched over a large
    radius with sub-pixel refinement, then a pose update — skipped when the camera is nearly stationary (§6.5),
    when disabled, or when too few coarse points are visible or found (PTAM code);
@@ -37,6 +38,7 @@ from ..map.snapshot import MapSnapshot
 from ..patch.finder import PatchFinder
 from ..patch.warp import PixelVectorCache, search_warps, template_matrices
 from ..vocabulary import PoseModel
+from .blur_evidence import shows_blur
 from .edgelet_tracking import EdgeletFrame, EdgeletTracker
 from .model_selection import select_pose_model
 from .motion_model import FrameGaps, MotionModel
@@ -89,6 +91,7 @@ class Tracker:
         self.scene_depth: tuple[float | None, float] = (None, 0.0)
         self._force_coarse = False
         self._rapid = False
+        self._sharp = False
         self._model = PoseModel.GENERAL
         self._rng = np.random.default_rng(self.tcfg.shuffle_seed)
 
@@ -131,6 +134,7 @@ class Tracker:
         if pyramid is None:
             pyramid = Pyramid.build(image, self.cfg.image)
         rotation = self.rotation.estimate(pyramid) if self.cfg.rotation.enabled else None
+        self._sharp = not shows_blur(pyramid, snapshot, self.T_cw, self.tcfg.blur_corner_fraction)
         clock.lap(PREPARE)
 
         T_start = self.T_cw
@@ -154,6 +158,8 @@ class Tracker:
     def _stages(self, pyramid, snapshot, T, force: bool, clock) -> TrackingPass:
         """Steps 2-5 from the prior pose ``T`` (the motion model's prior set accordingly)."""
         self._rapid = self._prior_is_rapid()
+        # Agility eq. 10's γ_C; no exposure for a rapid frame whose image kept its corners (:mod:`.blur_evidence`)
+        self._gamma = self.motion.exposure_motion(0.0 if self._rapid and self._sharp else self.tcfg.exposure_fraction)
         batch = Batch()
         self._edges = EdgeletFrame.empty()
         self._model = PoseModel.GENERAL
@@ -188,7 +194,7 @@ class Tracker:
         radius = cfg.coarse_radius_px * factor
         m = self._search(pyramid, snapshot, ids, level, cand.M[sel], cand.uv[sel], radius, np.ones(len(sel), bool))
         batch.add(ids, level, m, coarse=True)
-        edges = self.edgelets.search(pyramid.levels[0], snapshot, T, self.motion, coarse=True)  # Agility §8
+        edges = self.edgelets.search(pyramid.levels[0], snapshot, T, self._gamma, coarse=True)  # §8
         clock.lap(SEARCH)
         # Agility §8: edgelets measured with the coarse points count towards the update; blur that hides the
         # coarse points leaves edges (Fig. 5).
@@ -231,7 +237,7 @@ class Tracker:
             self._search(pyramid, snapshot, ids, level, cand.M[sel], uv_sel, radius, ptam_subpix | extra), extra, cfg
         )
         batch.add(ids, level, m, coarse=False)
-        self._edges = self.edgelets.search(pyramid.levels[0], snapshot, T, self.motion)
+        self._edges = self.edgelets.search(pyramid.levels[0], snapshot, T, self._gamma)
         clock.lap(SEARCH)
         found, xy = batch.found(), batch.xy()
         with_edges = self.edgelets.usable(self._edges)
@@ -295,14 +301,14 @@ class Tracker:
         smear left a corner."""
         if self.tcfg.smear_variance == 0.0:  # PTAM's measurements: nothing to predict
             return np.zeros((len(X), 2))
-        smear = patch_smear(self.camera, T, X, Xw, self.motion.exposure_motion(self.tcfg.exposure_fraction))
+        smear = patch_smear(self.camera, T, X, Xw, self._gamma)
         smear[refined] = 0.0
         return smear_axes(smear, level, self.tcfg.smear_variance)
 
     def _unblurred(self, snapshot, T, ids, uv, level, M):
         """The candidates whose expected blur leaves their patch searchable (``patch_blur``)."""
         X, w = snapshot.features(ids)
-        blur = patch_blur(self.camera, T, X, w, self.motion.exposure_motion(self.tcfg.exposure_fraction))
+        blur = patch_blur(self.camera, T, X, w, self._gamma)
         ok = searchable(blur, level, self.cfg.patch.size, self.tcfg.blur_gate_patch_widths)
         return ids[ok], uv[ok], level[ok], M[ok]
 
