@@ -11,6 +11,7 @@ from ptam.bench.accuracy import run_accuracy
 from ptam.config import load_config
 from ptam.geometry import se3
 from ptam.system.keyframe_policy import KeyframePolicy
+from ptam.tracking.blur_evidence import shows_blur
 from ptam.tracking.motion_model import FrameGaps
 from ptam.tracking.track_result import KeyframeCandidate
 from ptam.vocabulary import RunMode
@@ -71,6 +72,13 @@ def test_ptams_twenty_frames_between_keyframes_last_two_thirds_of_a_second_at_an
     assert policy._min_frames() == 20  # PTAM: frames, whatever their rate
 
 
+def _tracked(pyramid, inliers: int, snapshot, cfg):
+    """A tracked frame as the policy sees it: ``sharp`` as the tracker judges it (``blur_evidence``)."""
+    meas = SimpleNamespace(found=np.arange(1000) < inliers, inlier=np.ones(1000, bool))
+    sharp = not shows_blur(pyramid, snapshot, np.eye(4), cfg.tracker.blur_corner_fraction)
+    return SimpleNamespace(sharp=sharp, measurements=meas)
+
+
 def test_a_sharp_rapid_frame_is_mapped_only_if_more_than_the_coarse_stage_posed_it():
     """Agility §10 keeps a rapid frame out of the map unless its image kept its corners (``blur_evidence``); then
     it must also rest on more than the coarse stage's few features (PTAM §5.5)."""
@@ -85,12 +93,9 @@ def test_a_sharp_rapid_frame_is_mapped_only_if_more_than_the_coarse_stage_posed_
         (sharp, cfg.tracker.coarse_points + 1, True),
         (smeared, 500, False),
     ):
-        meas = SimpleNamespace(found=np.arange(1000) < inliers, inlier=np.ones(1000, bool))
-        res = SimpleNamespace(pyramid=pyramid, T_cw=np.eye(4), measurements=meas)
-        assert policy._rapid_but_mappable(res, snapshot) == mappable
+        assert policy._rapid_but_mappable(_tracked(pyramid, inliers, snapshot, cfg)) == mappable
     policy.cfg = load_config(overrides=["tracker.blur_corner_fraction=.inf"])  # Agility §10: no rapid keyframe
-    meas = SimpleNamespace(found=np.ones(1000, bool), inlier=np.ones(1000, bool))
-    assert not policy._rapid_but_mappable(SimpleNamespace(pyramid=sharp, T_cw=np.eye(4), measurements=meas), snapshot)
+    assert not policy._rapid_but_mappable(_tracked(sharp, 1000, snapshot, policy.cfg))
 
 
 TEN_FPS_CORNER = """\

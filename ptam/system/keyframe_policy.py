@@ -13,7 +13,6 @@ from ..camera.model import CameraModel
 from ..config import Config
 from ..geometry import se3
 from ..mapping.map_maker import KeyframeRequest, MapMaker
-from ..tracking.blur_evidence import shows_blur
 from ..tracking.tracker import Tracker
 from ..vocabulary import PoseModel, Quality, RunMode
 from .ray_check import RayCheck
@@ -61,7 +60,7 @@ class KeyframePolicy:
             due = turned or self._baseline_grown(res)
         if (
             self.localize_only
-            or (res.rapid_motion and not self._rapid_but_mappable(res, snapshot))
+            or (res.rapid_motion and not self._rapid_but_mappable(res))
             or res.in_doubt
             or self._ray_check.doubting
             or self._good_streak < self.cfg.reloc.confirm_frames
@@ -152,17 +151,17 @@ class KeyframePolicy:
             return m.kf_min_frames
         return round(m.kf_min_frames / (m.kf_min_frames_fps * period))
 
-    def _rapid_but_mappable(self, res, snapshot) -> bool:
+    def _rapid_but_mappable(self, res) -> bool:
         """A rapid frame that may still become a keyframe. Agility §10 keeps rapid frames out of the map for their
-        motion blur; one whose image kept its corners (``tracking.blur_evidence``) was exposed too briefly to
-        blur, and a turn filmed at 10 fps is rapid throughout: without its keyframes the map cannot follow it.
+        motion blur; one whose image kept its corners (``res.sharp``, the tracker's ``blur_evidence``) was exposed
+        too briefly to blur, and a turn filmed at 10 fps is rapid throughout: without its keyframes the map cannot
+        follow it.
         It must also have been posed by more than the coarse stage's few features (``tracker.coarse_points``,
         PTAM §5.5): a pose from a dozen coarse patches is good by PTAM's fraction but does not place a keyframe
         (desk_corner at 10 fps, 6° a frame, with blur expected: one 70 mm off from 11 of 12 patches)."""
         m = res.measurements
         inliers = int(np.count_nonzero(m.found & m.inlier))
-        sharp = not shows_blur(res.pyramid, snapshot, res.T_cw, self.cfg.tracker.blur_corner_fraction)
-        return inliers > self.cfg.tracker.coarse_points and sharp
+        return inliers > self.cfg.tracker.coarse_points and res.sharp
 
     def _about_parent(self, T_cw: np.ndarray) -> np.ndarray:
         """A panorama keyframe's pose. Its rotation was estimated about the nearest keyframe's centre: when that

@@ -81,6 +81,7 @@ class TrackResult:
     timings: StageTimings
     keyframe: KeyframeCandidate
     rapid_motion: bool = False  # failure detection was suspended this frame (Agility §8)
+    sharp: bool = False  # the image kept its corners (``blur_evidence``): under rapid motion no blur was expected
     in_doubt: bool = False  # tracked from an approximate prior (a recovery or missed frames): no keyframe from it
     pose_model: PoseModel = PoseModel.GENERAL  # the motion model chosen (Gauglitz et al. §4.2)
     n_edgelets_attempted: int = 0  # edgelets searched this frame (Agility §5.1)

@@ -158,7 +158,6 @@ class Tracker:
     def _stages(self, pyramid, snapshot, T, force: bool, clock) -> TrackingPass:
         """Steps 2-5 from the prior pose ``T`` (the motion model's prior set accordingly)."""
         self._rapid = self._prior_is_rapid()
-        # Agility eq. 10's γ_C; no exposure for a rapid frame whose image kept its corners (:mod:`.blur_evidence`)
         self._gamma = self.motion.exposure_motion(0.0 if self._rapid and self._sharp else self.tcfg.exposure_fraction)
         batch = Batch()
         self._edges = EdgeletFrame.empty()
@@ -377,6 +376,7 @@ class Tracker:
             timings=clock.timings(),
             keyframe=kf,
             rapid_motion=bool(rapid),
+            sharp=self._sharp,
             pose_model=self._model,
             n_edgelets_attempted=self._edges.n_attempted,
             n_edgelets_found=self._edges.n_found,
