@@ -161,10 +161,13 @@ def test_blurred_frames_of_poor_quality_are_tracked_on_but_not_reported(cfg):
 def test_integer_matches_weighted_along_their_smear_carry_points_through_desk_blur(cfg):
     """PTAM's point tracking on desk_blur's sweeps (no edgelets, every patch searched, Agility §6's least-squares
     rotation prior): its integer matches land on whichever corner a smear left, and weighted as sharp (σ = 2^level
-    both ways) they put a fifth of the frames off (measured: 78.7 % correct, 4 glitches, 23 mm; with the Tukey-weighted
-    rotation prior 91.7 %, 4 glitches, 11.8 mm). With ``tracker.smear_variance`` 1/12 (the variance of a position
-    uniform over the predicted smear, along it only) the same tracker keeps 96.1 % of the frames right, with no
-    glitch and a 1.9 mm ATE."""
+    both ways) they put a sixth to a fifth of the frames off (measured: 78.7 % correct, 4 glitches, 23 mm; with the
+    Tukey-weighted rotation prior 91.7 %, 4 glitches, 11.8 mm). With ``tracker.smear_variance`` 1/12 (the variance of a
+    position uniform over the predicted smear, along it only) the same tracker keeps 96.1 % of the frames right, with
+    no glitch and a 1.9 mm ATE. The failing baseline's ATE depends on the machine: the same code and packages gave
+    83.9 %, 2 glitches and 4.2 mm on an AMD EPYC (znver3) where the first figures came from another machine (its
+    smeared run: 96.5 %, 0 glitches, 1.5 mm), so the baseline is held to the contrast: fewer frames right, glitches,
+    and at least twice the ATE."""
     d = sequence("desk_blur")
     crit = criteria(cfg)
     ptam = cfg.replace(
@@ -187,4 +190,4 @@ def test_integer_matches_weighted_along_their_smear_carry_points_through_desk_bl
         )
     sharp, smeared = runs[0.0], runs[1.0 / 12.0]
     assert smeared.correct_fraction > 0.93 and smeared.glitches == 0 and smeared.ate_rmse_m < 4e-3
-    assert sharp.correct_fraction < 0.85 and sharp.ate_rmse_m > 10e-3
+    assert sharp.correct_fraction < 0.85 and sharp.glitches > 0 and sharp.ate_rmse_m > 2.0 * smeared.ate_rmse_m
