@@ -229,6 +229,7 @@ class BundleConfig:
     min_tukey_sigma: Annotated[float, Range("(0, inf)")]
     hold_scale: bool
     hold_underdetermined: bool
+    tukey_from_points: bool
     local_neighbours: Annotated[int, Range("[0, inf)")]
     dense_max_cameras: Annotated[int, Range("[0, inf)")]
 

@@ -201,7 +201,8 @@ class Bundle:
             ba_residuals(cam, s.P, s.X, st.mcam, st.mpt, s.uv, s.inv_sigma, s.use, s.err, s.e2, s.bad)
         s.edg.residuals(s.P)
         n = gather_errors(s.e2, s.use, s.bad, s.errs, 0)
-        n = gather_errors(s.edg.e2, s.edg.use, s.edg.bad, s.errs, n)  # one cut-off for both (``bundle_edgelets``)
+        if n == 0 or not self.cfg.tukey_from_points:  # the cut-off for both (``bundle_edgelets``)
+            n = gather_errors(s.edg.e2, s.edg.use, s.edg.bad, s.errs, n)
         s.c2 = c2 = cutoff_sq_of(s.errs, n, self.cfg.min_tukey_sigma)
         cost = ba_linearise(cam, s.P, s.X, st.mcam, st.mpt, s.uv, s.inv_sigma, s.use, c2, st.cam_row, *s.normal, s.live)
         cost += s.edg.linearise(c2, (s.U, s.ea))
@@ -371,7 +372,8 @@ class _LMState:
         """Points (and edgelets) left with fewer than two measurements in the problem are held where they are: one
         measurement fixes no depth, and LM's steps, damped per parameter, slide such a point along its ray by
         amounts that grow as λ falls (1.7 mm per iteration up to the iteration limit on a desk_table global BA while
-        edgelets still moved the scale). Their measurements leave the problem without being outliers."""
+        edgelets still moved the scale). Their measurements leave the problem without being outliers. Edgelets are
+        also held in §4.3's aperture problem (``EdgeletLM.hold_underdetermined``)."""
         self.use &= seen_twice(self.st.mpt, self.use, len(self.st.pts))
         self.edg.hold_underdetermined()
 

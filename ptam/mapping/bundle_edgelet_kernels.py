@@ -24,6 +24,9 @@ the Tukey biweight and accumulated:
   ``ptam.edgelet.edgelet_ba_kernels.frames_updated`` applies them to the frames (``Edgelets.updated``).
 * ``ba_edgelet_seen_update``: the edgelet updates' share of the convergence test, the motion of their sample points
   that the measurements can see (``bundle_edgelets.EdgeletLM.squared_update``).
+* ``ba_edgelet_plane_angles``, ``ba_edgelet_hold``: the planes through each edgelet and its measuring keyframes'
+  centres, once per adjustment, and the hold of edgelets left with one measurement or in §4.3's aperture problem
+  (``bundle_edgelets.EdgeletLM.hold_underdetermined``).
 
 ``cam`` is the camera the measured lines are in: the image itself (``to_px`` the identity), or, as
 ``bundle_edgelets`` runs them, the normalised image plane of a unit pinhole, where a straight edge is straight and
@@ -267,3 +270,71 @@ def ba_edgelet_schur(V, eb, A, B, live, lam, mrow, e_start, order, pair_id, bloc
     for e in range(e_start.shape[0] - 1):
         inv_sym4(V[e], lam, Vinv[e], L, Li)
     eliminate(Vinv, eb, A, B, live, mrow, e_start, order, pair_id, blocks, rhs)
+
+
+@njit(nogil=True, cache=True)
+def ba_edgelet_plane_angles(poses, frames, mcam, medg, angle):
+    """Per measurement, the angle (radians, in (−π/2, π/2]) of the plane through its edgelet's 3-D line and its
+    keyframe's centre, modulo π from the plane of the edgelet's first measurement (``angle`` (M,); NaN where the
+    keyframe looks along the line and spans no plane). Every such plane contains the line, so its normal lies in
+    the frame's x-y plane, and two planes meeting at a few degrees leave the line free to turn within them
+    (Agility §4.3's aperture problem; ``ba_edgelet_hold``)."""
+    ref = np.full(frames.shape[0], np.nan)
+    for k in range(mcam.shape[0]):
+        T = poses[mcam[k]]
+        E = frames[medg[k]]
+        # r = centre − camera centre (C = −Rᵀt), n = r × direction
+        r0 = E[0, 3] + T[0, 0] * T[0, 3] + T[1, 0] * T[1, 3] + T[2, 0] * T[2, 3]
+        r1 = E[1, 3] + T[0, 1] * T[0, 3] + T[1, 1] * T[1, 3] + T[2, 1] * T[2, 3]
+        r2 = E[2, 3] + T[0, 2] * T[0, 3] + T[1, 2] * T[1, 3] + T[2, 2] * T[2, 3]
+        n0 = r1 * E[2, 2] - r2 * E[1, 2]
+        n1 = r2 * E[0, 2] - r0 * E[2, 2]
+        n2 = r0 * E[1, 2] - r1 * E[0, 2]
+        x = n0 * E[0, 0] + n1 * E[1, 0] + n2 * E[2, 0]
+        y = n0 * E[0, 1] + n1 * E[1, 1] + n2 * E[2, 1]
+        angle[k] = np.nan
+        if x == 0.0 and y == 0.0:
+            continue
+        phi = math.atan2(y, x)
+        e = medg[k]
+        if np.isnan(ref[e]):
+            ref[e] = phi
+        d = (phi - ref[e]) % math.pi
+        angle[k] = d - math.pi if d > 0.5 * math.pi else d
+
+
+@njit(nogil=True, cache=True)
+def ba_edgelet_hold(medg, use, angle, min_angle, frames, start_frames):
+    """Hold the edgelets whose measurements in ``use`` are fewer than two, or whose planes (``angle``, from
+    ``ba_edgelet_plane_angles``) span less than ``min_angle``: their measurements leave ``use``, and those that had
+    one in it go back to ``start_frames``. Returns the measurements left in use. The span is the shortest arc
+    (modulo π) holding their angles, the widest pair's angle when under π/2: the largest minus the smallest angle
+    read in (−π/2, π/2] and again in [0, π), whichever is less (an arc under π/2 cannot hold both reads' wraps,
+    π/2 apart)."""
+    ne = frames.shape[0]
+    count = np.zeros(ne, np.int64)
+    lo = np.full((ne, 2), np.inf)
+    hi = np.full((ne, 2), -np.inf)
+    for k in range(medg.shape[0]):
+        if use[k]:
+            e = medg[k]
+            count[e] += 1
+            a = angle[k]
+            if not np.isnan(a):
+                b = a + math.pi if a < 0.0 else a
+                lo[e, 0] = min(lo[e, 0], a)
+                hi[e, 0] = max(hi[e, 0], a)
+                lo[e, 1] = min(lo[e, 1], b)
+                hi[e, 1] = max(hi[e, 1], b)
+    held = np.zeros(ne, np.bool_)
+    for e in range(ne):
+        span = min(hi[e, 0] - lo[e, 0], hi[e, 1] - lo[e, 1])
+        if count[e] > 0 and (count[e] < 2 or not span >= min_angle):
+            held[e] = True
+            frames[e] = start_frames[e]
+    n = 0
+    for k in range(medg.shape[0]):
+        if use[k] and held[medg[k]]:
+            use[k] = False
+        n += use[k]
+    return n

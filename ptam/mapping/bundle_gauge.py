@@ -22,7 +22,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..map.snapshot import camera_centres
 from .bundle_structure import BundleStructure, ReducedSolver
 
 
@@ -42,9 +41,10 @@ class ScaleGauge:
     def direction(self, P: np.ndarray, free: np.ndarray) -> np.ndarray:
         """g (6·n_free,): the free keyframes' pose updates (translation, rotation) that scale the map about the fixed
         keyframe's centre c₀ by 1 + ε, per unit ε (T ← exp(μ) T: the translation moves by −R (C − c₀))."""
-        c0 = camera_centres(P[self.fixed : self.fixed + 1])[0]
+        F = P[self.fixed]
+        Pf = P[free]
         g = np.zeros((len(free), 6))
-        g[:, :3] = P[free, :3, 3] + np.einsum("nij,j->ni", P[free, :3, :3], c0)  # −R (C − c₀), C = −Rᵀ t
+        g[:, :3] = Pf[:, :3, 3] - Pf[:, :3, :3] @ (F[:3, :3].T @ F[:3, 3])  # −R (C − c₀), C = −Rᵀ t
         return g.ravel()
 
     def step(self, solver: ReducedSolver, blocks: np.ndarray, rhs: np.ndarray, g: np.ndarray) -> np.ndarray:

@@ -67,3 +67,29 @@ def ba_edgelet_seen_update_ref(jp, je, de, medg, use, bad, n_edgelets):
     seen = np.zeros(n_edgelets)
     np.maximum.at(seen, medg[ok], m2)
     return seen
+
+
+def ba_edgelet_plane_spread_ref(poses, frames, mcam, medg, use, n_edgelets):
+    """Widest angle (radians) between any two planes through an edgelet's line and its measuring keyframes'
+    centres (lines' normals compared modulo π), by every pair; 0 with fewer than two."""
+    spread = np.zeros(n_edgelets)
+    C = -np.einsum("nji,nj->ni", poses[:, :3, :3], poses[:, :3, 3])
+    for e in range(n_edgelets):
+        k = np.flatnonzero(use & (medg == e))
+        n = np.cross(frames[e, :3, 3] - C[mcam[k]], frames[e, :3, 2])
+        keep = np.linalg.norm(n, axis=1) > 0
+        n = n[keep] / np.linalg.norm(n[keep], axis=1, keepdims=True)
+        if len(n) >= 2:
+            spread[e] = np.arccos(np.clip(np.abs(n @ n.T), 0.0, 1.0)).max()
+    return spread
+
+
+def ba_edgelet_hold_ref(poses, frames, mcam, medg, use, min_angle, start_frames):
+    """(use, frames) after holding the edgelets with fewer than two measurements in ``use`` or planes spanning less
+    than ``min_angle`` (``ba_edgelet_plane_spread_ref``); held ones that had a measurement in use get their start."""
+    n = len(frames)
+    count = np.bincount(medg[use], minlength=n)
+    held = (count > 0) & ((count < 2) | (ba_edgelet_plane_spread_ref(poses, frames, mcam, medg, use, n) < min_angle))
+    frames = frames.copy()
+    frames[held] = start_frames[held]
+    return use & ~held[medg], frames
