@@ -17,7 +17,10 @@ from numba import njit
 def minipatch_find(src, src_xy, dst, dst_xy, corners, row_lut, radius, half, max_ssd, gain):
     """For each i: template at ``src_xy[i]`` in ``src``, searched in ``dst`` around ``dst_xy[i]``.
 
-    Returns found (T, 2) int32 and ok (T,) bool. Ties keep the corner met first (row-major order).
+    Returns found (T, 2) int32 and ok (T,) bool. Ties keep the corner met first (row-major order). ``corners``
+    are sorted by y, then x (``fast_corners``): within each row of the circle the first one in range is found by
+    binary search from the row look-up table, as the tracker's patch search does (a full-row scan took 40 % of
+    a trail step on two_wall's 31 000 level-0 corners).
     """
     n = src_xy.shape[0]
     hs, ws = src.shape
@@ -39,29 +42,39 @@ def minipatch_find(src, src_xy, dst, dst_xy, corners, row_lut, radius, half, max
         best = float(max_ssd)
         bx = -1
         by = -1
-        for k in range(row_lut[y0], row_lut[y1 + 1]):
-            x = corners[k, 0]
-            y = corners[k, 1]
-            if x < half or x >= wd - half:
-                continue
-            dx = x - cx
-            dy = y - cy
-            if dx * dx + dy * dy > r2:
-                continue
-            acc = 0.0
-            for v in range(-half, half + 1):
-                for u in range(-half, half + 1):
-                    d = float(dst[y + v, x + u]) - gain * float(src[sy + v, sx + u])
-                    acc += d * d
+        x_lo = max(cx - radius, half)
+        x_hi = min(cx + radius, wd - 1 - half)
+        for row in range(y0, y1 + 1):
+            # The row's corners are sorted by x: the first at x >= x_lo by binary search, then on to x_hi.
+            lo = row_lut[row]
+            hi = row_lut[row + 1]
+            while lo < hi:
+                mid = (lo + hi) // 2
+                if corners[mid, 0] < x_lo:
+                    lo = mid + 1
+                else:
+                    hi = mid
+            for k in range(lo, row_lut[row + 1]):
+                x = corners[k, 0]
+                if x > x_hi:
+                    break
+                dx = x - cx
+                dy = row - cy
+                if dx * dx + dy * dy > r2:
+                    continue
+                acc = 0.0
+                for v in range(-half, half + 1):
+                    for u in range(-half, half + 1):
+                        d = float(dst[row + v, x + u]) - gain * float(src[sy + v, sx + u])
+                        acc += d * d
+                        if acc >= best:
+                            break
                     if acc >= best:
                         break
-                if acc >= best:
-                    break
-            ssd = acc
-            if ssd < best:
-                best = ssd
-                bx = x
-                by = y
+                if acc < best:
+                    best = acc
+                    bx = x
+                    by = row
         if bx >= 0:
             found[i, 0] = bx
             found[i, 1] = by
