@@ -17,6 +17,8 @@ import math
 import numpy as np
 from numba import njit
 
+from ..image.corner_rows import first_in_row
+
 
 @njit(nogil=True, cache=True, fastmath=True)
 def _zmssd(win, t, tsq):
@@ -72,15 +74,7 @@ def search_patches(levels, corners, row_luts, templates, level, center, radius, 
             dx = int(math.sqrt(R * R - dy * dy) + 1e-9)
             xa = max(cx - dx, x_lo)
             xb = min(cx + dx, x_hi)
-            lo = lut[y]
-            hi = lut[y + 1]
-            while lo < hi:
-                mid = (lo + hi) >> 1
-                if cs[mid, 0] < xa:
-                    lo = mid + 1
-                else:
-                    hi = mid
-            for j in range(lo, lut[y + 1]):
+            for j in range(first_in_row(cs, lut, y, xa), lut[y + 1]):
                 x = cs[j, 0]
                 if x > xb:
                     break

@@ -12,6 +12,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..image.corner_rows import first_in_row
+
 
 @njit(nogil=True, cache=True)
 def minipatch_find(src, src_xy, dst, dst_xy, corners, row_lut, radius, half, max_ssd, gain):
@@ -45,16 +47,7 @@ def minipatch_find(src, src_xy, dst, dst_xy, corners, row_lut, radius, half, max
         x_lo = max(cx - radius, half)
         x_hi = min(cx + radius, wd - 1 - half)
         for row in range(y0, y1 + 1):
-            # The row's corners are sorted by x: the first at x >= x_lo by binary search, then on to x_hi.
-            lo = row_lut[row]
-            hi = row_lut[row + 1]
-            while lo < hi:
-                mid = (lo + hi) // 2
-                if corners[mid, 0] < x_lo:
-                    lo = mid + 1
-                else:
-                    hi = mid
-            for k in range(lo, row_lut[row + 1]):
+            for k in range(first_in_row(corners, row_lut, row, x_lo), row_lut[row + 1]):
                 x = corners[k, 0]
                 if x > x_hi:
                     break
