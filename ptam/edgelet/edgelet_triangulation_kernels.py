@@ -46,7 +46,7 @@ def _plane_normal(R, rays, i):
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _centre(T):
+def camera_centre(T):
     """The camera centre −Rᵀt of pose T_cw."""
     cx = -(T[0, 0] * T[0, 3] + T[1, 0] * T[1, 3] + T[2, 0] * T[2, 3])
     cy = -(T[0, 1] * T[0, 3] + T[1, 1] * T[1, 3] + T[2, 1] * T[2, 3])
@@ -61,7 +61,7 @@ def plane_normals(T_cw, rays):
     n = rays.shape[0]
     m = np.empty((n, 3))
     o = np.empty(n)
-    px, py, pz = _centre(T_cw)
+    px, py, pz = camera_centre(T_cw)
     for i in range(n):
         m[i, 0], m[i, 1], m[i, 2] = _plane_normal(T_cw, rays, i)
         o[i] = m[i, 0] * px + m[i, 1] * py + m[i, 2] * pz
@@ -91,8 +91,8 @@ def triangulate_lines(cam, T_src, rays_src, T_tgt, rays_tgt, n_img):
     s = np.empty(n)
     z_tgt = np.empty(n)
     J = np.empty((2, 3))
-    c1x, c1y, c1z = _centre(T_src)
-    c2x, c2y, c2z = _centre(T_tgt)
+    c1x, c1y, c1z = camera_centre(T_src)
+    c2x, c2y, c2z = camera_centre(T_tgt)
     R = T_src
     for i in range(n):
         m1x, m1y, m1z = _plane_normal(T_src, rays_src, i)

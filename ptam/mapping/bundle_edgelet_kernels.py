@@ -44,6 +44,7 @@ from numba import njit
 
 from ..camera.camproj_kernels import distort, project, project_jac, undistort
 from ..edgelet.edgelet_ba_kernels import axis_in_camera, measurement_rows
+from ..edgelet.edgelet_triangulation_kernels import camera_centre
 from .bundle_kernels import clear_residual
 from .bundle_schur_kernels import eliminate
 
@@ -283,10 +284,10 @@ def ba_edgelet_plane_angles(poses, frames, mcam, medg, angle):
     for k in range(mcam.shape[0]):
         T = poses[mcam[k]]
         E = frames[medg[k]]
-        # r = centre − camera centre (C = −Rᵀt), n = r × direction
-        r0 = E[0, 3] + T[0, 0] * T[0, 3] + T[1, 0] * T[1, 3] + T[2, 0] * T[2, 3]
-        r1 = E[1, 3] + T[0, 1] * T[0, 3] + T[1, 1] * T[1, 3] + T[2, 1] * T[2, 3]
-        r2 = E[2, 3] + T[0, 2] * T[0, 3] + T[1, 2] * T[1, 3] + T[2, 2] * T[2, 3]
+        cx, cy, cz = camera_centre(T)
+        r0 = E[0, 3] - cx  # n = (centre − camera centre) × direction
+        r1 = E[1, 3] - cy
+        r2 = E[2, 3] - cz
         n0 = r1 * E[2, 2] - r2 * E[1, 2]
         n1 = r2 * E[0, 2] - r0 * E[2, 2]
         n2 = r0 * E[1, 2] - r1 * E[0, 2]
