@@ -9,6 +9,7 @@ from ptam.mapping import bundle_kernels as K
 from ptam.mapping import bundle_schur_kernels as SK
 from ptam.mapping import bundle_solve_kernels as ba_solve
 from ptam.mapping.bundle_structure import ReducedSolver, build_structure
+from ptam.mapping.bundle_structure_kernels import landmark_layout
 from tests.reference import bundle as R
 
 CAMERAS = {
@@ -191,6 +192,27 @@ def test_pair_script(problem):
     pair_id, rows, cols = SK.ba_pair_script(st.pt_start, st.order, st.mrow, st.n_free)
     assert len(ref) > 100 and np.array_equal(np.c_[rows[pair_id], cols[pair_id]], ref)
     assert len(np.unique(rows * st.n_free + cols)) == len(rows) == len(np.unique(ref[:, 0] * st.n_free + ref[:, 1]))
+
+
+@pytest.mark.parametrize("duplicate", [False, True])
+def test_landmark_layout_matches_numpy(duplicate):
+    """Measurements by landmark and then camera row, fixed keyframes (row −1) first, ties in input order, as
+    ``np.lexsort``; a keyframe measuring a landmark twice is found wherever the pair falls."""
+    rng = np.random.default_rng(3)
+    n_cams, n_lm = 12, 400
+    cam_row = np.where(rng.random(n_cams) < 0.4, -1, 0)
+    cam_row[cam_row >= 0] = np.arange(np.count_nonzero(cam_row >= 0))
+    cam, lm = np.nonzero(rng.random((n_cams, n_lm)) < 0.3)
+    perm = rng.permutation(len(cam))
+    cam, lm = cam[perm], lm[perm]
+    if duplicate:
+        cam, lm = np.append(cam, cam[17]), np.append(lm, lm[17])
+    got = landmark_layout(lm, cam, cam_row[cam], n_lm, n_cams)
+    ref = R.landmark_layout_ref(lm, cam, cam_row[cam], n_lm)
+    assert len(ref[0]) < n_lm and ref[4] > 500 and ref[5] is not duplicate
+    for g, r in zip(got[:4], ref[:4]):
+        assert np.array_equal(g, r)
+    assert got[4:] == ref[4:]
 
 
 def test_not_positive_definite_is_reported():

@@ -17,6 +17,7 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 from ..errors import InputError
 from .bundle_schur_kernels import ba_pair_script
 from .bundle_solve_kernels import ba_envelope, ba_envelope_solve
+from .bundle_structure_kernels import landmark_layout
 
 
 @dataclass(frozen=True)
@@ -69,14 +70,16 @@ def _compact(idx: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     return np.flatnonzero(present), rank[idx].astype(np.int64)
 
 
-def _landmarks(kf_idx: np.ndarray, lm: np.ndarray, n_lm: int, n_cams: int, what: str) -> tuple[np.ndarray, np.ndarray]:
-    """Compact landmark ids and landmark indices of the measurements (landmarks < ``n_lm``, keyframes <
-    ``n_cams``); refuses a keyframe measuring one twice."""
-    ids, mlm = _compact(lm, n_lm)
-    key = np.sort(mlm * max(n_cams, 1) + kf_idx)
-    if np.any(key[1:] == key[:-1]):
+def _landmarks(
+    lm: np.ndarray, mcam: np.ndarray, mrow: np.ndarray, n_lm: int, n_cams: int, what: str
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+    """The landmarks (< ``n_lm``) measured, each measurement's compact landmark, the measurements by landmark then
+    camera row, where each landmark's run starts and the camera-pair walk's entries (``landmark_layout``); refuses a
+    keyframe measuring one twice."""
+    ids, mlm, order, start, n_entries, ok = landmark_layout(lm, mcam, mrow, n_lm, max(n_cams, 1))
+    if not ok:
         raise InputError(f"bundle adjustment: a keyframe measures the same {what} twice")
-    return ids, mlm
+    return ids, mlm, order, start, int(n_entries)
 
 
 def seen_twice(mlm: np.ndarray, use: np.ndarray, n: int) -> np.ndarray:
@@ -84,26 +87,18 @@ def seen_twice(mlm: np.ndarray, use: np.ndarray, n: int) -> np.ndarray:
     return np.bincount(mlm[use], minlength=n)[mlm] >= 2
 
 
-def _starts(mlm: np.ndarray, n: int) -> np.ndarray:
-    return np.concatenate([[0], np.cumsum(np.bincount(mlm, minlength=n))]).astype(np.int64)
-
-
 def _with_edgelets(esel, eid, n_edgelets: int, emcam, cam_row, points: tuple, n_free: int):
     """The edgelets' structure and the camera pairs of one walk over the points and then the edgelets, which
     numbers every pair that either shares; returns (edgelet structure, points' pair ids, pair rows, columns)."""
-    mpt, mrow, order, pt_start = points
-    ids, medg = _landmarks(emcam, eid, n_edgelets, len(cam_row), "edgelet")
+    mrow, order, pt_start, n_pt = points
     emrow = cam_row[emcam]
-    eorder = np.lexsort((emrow, medg)).astype(np.int64)
-    e_start = _starts(medg, len(ids))
+    ids, medg, eorder, e_start, _ = _landmarks(eid, emcam, emrow, n_edgelets, len(cam_row), "edgelet")
     pair_id, rows, cols = ba_pair_script(
         np.concatenate([pt_start, pt_start[-1] + e_start[1:]]),
-        np.concatenate([order, len(mpt) + eorder]),
+        np.concatenate([order, len(mrow) + eorder]),
         np.concatenate([mrow, emrow]),
         n_free,
     )
-    per_pt = np.bincount(mpt[mrow >= 0], minlength=len(pt_start) - 1)
-    n_pt = int(np.sum(per_pt * (per_pt - 1) // 2))
     edg = EdgeletStructure(ids, esel, emcam, medg, emrow, eorder, e_start, n_free + pair_id[n_pt:])
     return edg, pair_id[:n_pt], rows, cols
 
@@ -122,19 +117,17 @@ def build_structure(
     ekf, eid = (np.zeros(0, np.int64),) * 2 if edgelet_meas is None else (edgelet_meas[0][esel], edgelet_meas[1][esel])
     cams, inverse = _compact(np.concatenate([meas_kf[sel], ekf]), len(fixed_poses))
     mcam, emcam = inverse[: len(sel)], inverse[len(sel) :]
-    pts, mpt = _landmarks(mcam, meas_pt[sel], len(adjust_points), len(cams), "point")
     free = ~fixed_poses[cams]
     n_free = int(free.sum())
     cam_row = np.full(len(cams), -1, np.int64)
     cam_row[free] = np.arange(n_free)
     mrow = cam_row[mcam]
-    order = np.lexsort((mrow, mpt)).astype(np.int64)
-    pt_start = _starts(mpt, len(pts))
+    pts, mpt, order, pt_start, n_pt = _landmarks(meas_pt[sel], mcam, mrow, len(adjust_points), len(cams), "point")
     if edgelet_meas is None:
         edg = None
         pair_id, rows, cols = ba_pair_script(pt_start, order, mrow, n_free)
     else:
-        points = (mpt, mrow, order, pt_start)
+        points = (mrow, order, pt_start, n_pt)
         edg, pair_id, rows, cols = _with_edgelets(esel, eid, len(edgelet_meas[2]), emcam, cam_row, points, n_free)
     diag = np.arange(n_free, dtype=np.int64)
     return BundleStructure(

@@ -116,3 +116,14 @@ def ba_pair_script_ref(pt_start, order, mrow):
         rows = rows[rows >= 0]
         pairs += [(rows[a], rows[b]) for a in range(len(rows)) for b in range(a)]
     return np.array(pairs, dtype=np.int64).reshape(-1, 2)
+
+
+def landmark_layout_ref(lm, cam, row, n_lm):
+    """``landmark_layout`` by ``np.unique`` and ``np.lexsort``: ids, compact landmarks, order, starts, pair-walk
+    entries and whether no camera measures a landmark twice."""
+    ids, mlm = np.unique(lm, return_inverse=True)
+    order = np.lexsort((row, mlm))
+    start = np.concatenate([[0], np.cumsum(np.bincount(mlm, minlength=len(ids)))])
+    free = np.bincount(mlm[row >= 0], minlength=len(ids))
+    pairs = np.unique(np.c_[lm, cam], axis=0)
+    return ids, mlm, order, start, int(np.sum(free * (free - 1) // 2)), len(pairs) == len(lm)
