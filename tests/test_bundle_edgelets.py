@@ -4,6 +4,7 @@ points, one Tukey biweight for both), against numpy references and on synthetic 
 import numpy as np
 import pytest
 
+from ptam.camera.camproj_kernels import UNDISTORT_ITERS, UNDISTORT_TOL
 from ptam.camera.radtan import RadTanCamera
 from ptam.config import default_config
 from ptam.edgelet import EdgeletObservations, Edgelets, perp, project_edgelets, sample_along
@@ -14,7 +15,7 @@ from ptam.mapping import bundle_edgelet_kernels as EK
 from ptam.mapping import bundle_kernels as K
 from ptam.mapping import bundle_schur_kernels as SK
 from ptam.mapping.bundle import Bundle
-from ptam.mapping.bundle_edgelets import lens_linearised
+from ptam.mapping.bundle_edgelets import plane_camera
 from ptam.mapping.bundle_inputs import EdgeletBundleInput
 from ptam.mapping.bundle_structure import build_structure
 from tests.reference import bundle as R
@@ -183,6 +184,14 @@ def radtan_problem():
     return prob, synthetic_edgelets(prob, 150, seed=6, gross_fraction=0.03)
 
 
+def lens_linearised(camera, a, b):
+    """The measured lines moved to the normalised plane as ``EdgeletLM`` moves them: its camera, xy, g, to_px."""
+    m = len(a)
+    xy, g, to_px = np.empty((m, 2)), np.empty((m, 2)), np.empty((m, 2, 2))
+    EK.ba_edgelet_planes(camera.kernel_params(), a, b, UNDISTORT_ITERS, UNDISTORT_TOL, xy, g, to_px)
+    return plane_camera(camera), xy, g, to_px
+
+
 @pytest.mark.parametrize("lens", ["problem", "radtan_problem"])
 def test_lens_linearised_kernel_matches_numpy(lens, request):
     """``ba_edgelet_planes`` against the numpy reference (the lens's own unproject and Jacobian): the FOV lens's
@@ -196,6 +205,23 @@ def test_lens_linearised_kernel_matches_numpy(lens, request):
     assert np.abs(to_px - r_to_px).max() < 1e-9 * np.abs(r_to_px).max()
     assert np.abs(g - r_g).max() < 1e-9 * np.abs(r_g).max()
     assert plane[1] == plane[2] == 1.0 and plane[10] == prob.camera.max_radius
+
+
+def test_setup_kernel_is_the_three_start_kernels(problem):
+    """``ba_edgelet_setup``, one call at an adjustment's start, gives what ``ba_edgelet_planes``,
+    ``ba_edgelet_plane_angles`` and ``ba_edgelet_place`` give one by one (each against numpy elsewhere here)."""
+    prob, eb = problem
+    cam, obs, P, F = prob.camera, eb.obs, prob.poses_init, eb.init.frames()
+    off, n = CFG.edgelets.ba_sample_offset_px, len(eb.obs.kf)
+    plane, xy, g, to_px = lens_linearised(cam, obs.a, obs.b)
+    angle, along = np.empty(n), np.empty((n, 2))
+    EK.ba_edgelet_plane_angles(P, F, obs.kf, obs.edgelet, angle)
+    EK.ba_edgelet_place(plane, P, F, obs.kf, obs.edgelet, off, to_px, along)
+    lines = (obs.a, obs.b, UNDISTORT_ITERS, UNDISTORT_TOL, off)
+    got = EK.ba_edgelet_setup(cam.kernel_params(), plane, P, F, obs.kf, obs.edgelet, *lines)
+    assert np.isfinite(angle).sum() > 0.95 * n and np.all(along[:, 1] > 0.0)
+    for a, b in zip(got, (xy, g, to_px, angle, along), strict=True):
+        assert np.array_equal(a, b, equal_nan=True)
 
 
 @pytest.mark.parametrize("lens", ["problem", "radtan_problem"])
@@ -283,7 +309,7 @@ def test_kernels_match_reference(problem):
     V[0] = 0.0  # an edgelet without live measurements: V* is singular and the edgelet stays where it is
     lam = 1e-3
     blocks, rhs, Vinv = np.zeros((len(st.pair_rows), 6, 6)), np.zeros(6 * nf), np.empty_like(V)
-    EK.ba_edgelet_schur(V, eb, A, B, live, lam, es.mrow, es.e_start, es.order, es.pair_id, blocks, rhs, Vinv)
+    SK.ba_edgelet_schur(V, eb, A, B, live, lam, es.mrow, es.e_start, es.order, es.pair_id, blocks, rhs, Vinv)
     rS, rrhs, rVinv = RE.ba_edgelet_schur_ref(V, eb, W, live, lam, es.mrow, es.medg, nf)
     assert close(assemble(blocks, st.pair_rows, st.pair_cols, nf), rS) and close(rhs, rrhs) and close(Vinv, rVinv)
     assert not Vinv[0].any()
@@ -314,7 +340,7 @@ def test_one_walk_numbers_the_pairs_of_points_and_edgelets(problem):
     SK.ba_schur(
         U, ea, V, eb, Ap, Bp, live, lam, st.mrow, st.pt_start, st.order, st.pair_id, blocks, rhs, np.empty_like(V)
     )
-    EK.ba_edgelet_schur(
+    SK.ba_edgelet_schur(
         Ve, ebe, Ae, Be, livee, lam, es.mrow, es.e_start, es.order, es.pair_id, blocks, rhs, np.empty_like(Ve)
     )
     pS, prhs, _ = R.ba_schur_ref(U, ea, V, eb, R.w_blocks(Ap, Bp, live, st.mrow), live, lam, st.mrow, st.mpt)

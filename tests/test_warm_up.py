@@ -28,7 +28,7 @@ CAMERAS = {
 # edgelet search: what a live session used to compile or load while frames arrived.
 MAPPER_KERNELS = [
     "ptam.mapping.bundle_schur_kernels.ba_schur",
-    "ptam.mapping.bundle_edgelet_kernels.ba_edgelet_schur",
+    "ptam.mapping.bundle_schur_kernels.ba_edgelet_schur",
     "ptam.mapping.bundle_solve_kernels.ba_envelope_solve",
     "ptam.mapping.epipolar_kernels.epipolar_search",
     "ptam.mapping.edgelet_epipolar_kernels.curve_hits",

@@ -47,7 +47,7 @@ def axis_in_camera(T, E):
 def measurement_rows(cam, T, E, z2, a, n, J, jp, je, r):
     """One measurement's residuals r (2,) px and Jacobian rows jp (2, 6), je (2, 4) for pose T, edgelet frame E,
     sample points at E-frame z2 (2,) and the measured line through a with normal n (unit in an image; on the
-    normalised plane of ``bundle_edgelets.lens_linearised`` m̂ᵀL, so that r is in pixels); False (and nothing
+    normalised plane of ``bundle_edgelets.plane_camera`` m̂ᵀL, so that r is in pixels); False (and nothing
     written) when a sample point is behind the camera. Inlined: called, the BA's rows loop took 1.9x as long
     (numba 0.68)."""
     cx, cy, cz, dx, dy, dz = axis_in_camera(T, E)

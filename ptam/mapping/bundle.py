@@ -41,7 +41,7 @@ from ..config import BundleConfig
 from ..edgelet import Edgelets
 from ..errors import InputError
 from ..geometry import se3
-from .bundle_edgelets import EdgeletLM
+from .bundle_edgelets import EdgeletLM, plane_camera
 from .bundle_gauge import ScaleGauge
 from .bundle_inputs import EdgeletBundleInput, _checked_inputs, _Inputs
 from .bundle_kernels import ba_linearise, ba_residuals, ba_robust_cost, cutoff_sq_of, gather_errors, tukey_cutoff_sq
@@ -98,6 +98,7 @@ class Bundle:
         self.camera = camera
         self.cfg = cfg
         self._cam = np.ascontiguousarray(camera.kernel_params(), dtype=np.float64)
+        self._plane = plane_camera(camera)  # where the edgelets' measured lines are taken (``bundle_edgelets``)
 
     def adjust(
         self,
@@ -130,7 +131,7 @@ class Bundle:
         phases = {"setup": 0.0, "linearise": 0.0, "schur": 0.0, "solve": 0.0, "backsub": 0.0, "trial": 0.0}
         solver = ReducedSolver(st, dense=st.n_free <= self.cfg.dense_max_cameras)
         phases["setup"] = time.perf_counter() - t_start
-        edg_lm = EdgeletLM(self.camera, st, edg, inp.poses[st.cams])
+        edg_lm = EdgeletLM((self._cam, self._plane), st, edg, inp.poses[st.cams])
         state = _LMState(st, inp.poses[st.cams], inp.points[st.pts], inp.meas_xy[st.sel], inv_sigma, edg_lm)
         state.gauge = ScaleGauge.of(st) if self.cfg.hold_scale and edg_lm.n else None  # points alone: PTAM's step
         status = self._levenberg_marquardt(state, solver, should_abort, phases)
@@ -199,13 +200,14 @@ class Bundle:
         t = time.perf_counter()
         if not s.residuals_current:  # measurements in use are a subset of the accepted trial's, if any
             ba_residuals(cam, s.P, s.X, st.mcam, st.mpt, s.uv, s.inv_sigma, s.use, s.err, s.e2, s.bad)
-        s.edg.residuals(s.P)
         n = gather_errors(s.e2, s.use, s.bad, s.errs, 0)
-        if n == 0 or not self.cfg.tukey_from_points:  # the cut-off for both (``bundle_edgelets``)
+        pooled = n == 0 or not self.cfg.tukey_from_points
+        if pooled:  # the cut-off for both (``bundle_edgelets``)
+            s.edg.residuals(s.P)
             n = gather_errors(s.edg.e2, s.edg.use, s.edg.bad, s.errs, n)
         s.c2 = c2 = cutoff_sq_of(s.errs, n, self.cfg.min_tukey_sigma)
         cost = ba_linearise(cam, s.P, s.X, st.mcam, st.mpt, s.uv, s.inv_sigma, s.use, c2, st.cam_row, *s.normal, s.live)
-        cost += s.edg.linearise(c2, (s.U, s.ea))
+        cost += s.edg.linearise(s.P, c2, (s.U, s.ea), rows=not pooled)
         phases["linearise"] += time.perf_counter() - t
         return cost
 
@@ -265,8 +267,7 @@ class Bundle:
         phases["schur"] += t1 - t
         try:
             if s.gauge is not None:
-                g = s.gauge.direction(s.P, s.free_idx)
-                dcam = s.gauge.step(solver, s.blocks, s.rhs, g)
+                dcam = s.gauge.step(solver, s.blocks, s.rhs, s.P, s.free_idx)
             else:
                 dcam = solver.solve(s.blocks, s.rhs) if len(s.free_idx) else np.zeros(0)
         except np.linalg.LinAlgError:

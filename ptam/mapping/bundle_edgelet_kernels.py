@@ -7,19 +7,20 @@ the Tukey biweight and accumulated:
 
 * ``ba_edgelet_planes``: the measured lines moved, once, to the normalised image plane (``bundle_edgelets``).
 * ``ba_edgelet_place``: the two virtual sample points of eq. 6, ±5 px from the projected centre, at the start.
+* ``ba_edgelet_setup``: those two and ``ba_edgelet_plane_angles`` (below) in one call at the start.
 * ``ba_edgelet_rows``: at each linearisation, ε, |ε|² (the Tukey cut-off's input) and the Jacobian rows at those
   sample points, in one pass over the measurements (each sample point is projected once).
 * ``ba_edgelet_residuals``: ε and |ε|² alone, at the sample points of the linearisation (the trial steps' cost),
   and the sample points placed again at the trial's state from the same two projections, for the linearisation
   that follows if the trial is accepted. The centre's own projection and its Jacobian (``_along``) are then needed
   only at the start: per iteration an edgelet measurement costs four projections instead of five.
+* ``ba_edgelet_linearise_at``, ``ba_edgelet_trial``: a linearisation and a trial step, each in one call.
 * ``ba_edgelet_linearise``: from those rows and the Tukey cut-off, camera blocks U (6×6, added to the points' U),
   edgelet blocks V (4×4), the gradients ε_a, ε_b and the weighted rows A (2×6), B (2×4) whose product AᵀB is the
   camera-edgelet block W. ε is predicted − measured, the points' error measured − predicted; the gradients take
   −ε so that one step solves both.
-* ``ba_edgelet_schur``: S −= Σ W V*⁻¹ Wᵀ over every camera pair that shares an edgelet and the reduced
-  right-hand side, V* the diagonal × (1 + λ); it continues the walk of ``ba_pair_script`` after the points, with
-  the points' ``bundle_schur_kernels.eliminate`` (W has rank 2 for both: two distances per measurement).
+* ``bundle_schur_kernels.ba_edgelet_schur``: S −= Σ W V*⁻¹ Wᵀ over every camera pair that shares an edgelet and
+  the reduced right-hand side, as for points.
 * the edgelet updates δμ_E = V*⁻¹ (ε_b − Σ Wᵀ δμ_K) are ``bundle_schur_kernels.ba_backsub``'s, as for points;
   ``ptam.edgelet.edgelet_ba_kernels.frames_updated`` applies them to the frames (``Edgelets.updated``).
 * ``ba_edgelet_seen_update``: the edgelet updates' share of the convergence test, the motion of their sample points
@@ -43,10 +44,9 @@ import numpy as np
 from numba import njit
 
 from ..camera.camproj_kernels import distort, project, project_jac, undistort
-from ..edgelet.edgelet_ba_kernels import axis_in_camera, measurement_rows
+from ..edgelet.edgelet_ba_kernels import axis_in_camera, frames_updated, measurement_rows
 from ..edgelet.edgelet_triangulation_kernels import camera_centre
-from .bundle_kernels import clear_residual
-from .bundle_schur_kernels import eliminate
+from .bundle_kernels import ba_robust_cost, clear_residual
 
 
 @njit(nogil=True, cache=True, inline="always")
@@ -60,7 +60,7 @@ def _pixels(to_px, du, dv):
 @njit(nogil=True, cache=True)
 def ba_edgelet_planes(cam, a, b, iters, tol, xy, g, to_px):
     """Each measured line, through ``a`` (M, 2) px along ``b`` (M, 2), on the normalised image plane
-    (``bundle_edgelets.lens_linearised``): ``xy`` (M, 2) the unprojected a (``undistort``'s ``iters``, ``tol``),
+    (``bundle_edgelets.plane_camera``): ``xy`` (M, 2) the unprojected a (``undistort``'s ``iters``, ``tol``),
     ``to_px`` (M, 2, 2) the lens's pixel Jacobian there and ``g`` (M, 2) = m̂ᵀ to_px, m̂ = perp(b)/|b| the line's
     unit normal."""
     fx, fy = cam[1], cam[2]
@@ -104,6 +104,24 @@ def ba_edgelet_place(cam, poses, frames, mcam, medg, offset_px, to_px, along):
         z = _along(cam, poses[mcam[k]], frames[medg[k]], offset_px, to_px[k], J)
         along[k, 0] = -z
         along[k, 1] = z
+
+
+@njit(nogil=True, cache=True)
+def ba_edgelet_setup(cam, plane, poses, frames, mcam, medg, line_a, line_b, iters, tol, offset_px):
+    """An adjustment's start in one call (``bundle_edgelets.EdgeletLM``; separately, the Python between the calls
+    took as long as the kernels): the measured lines ``line_a``, ``line_b`` (M, 2) moved to the normalised plane
+    (``ba_edgelet_planes``: xy, g, to_px), each measurement's plane angle (``ba_edgelet_plane_angles``) and its
+    sample points (``ba_edgelet_place`` in ``plane``, the unit pinhole's parameters), at ``poses`` and ``frames``."""
+    m = mcam.shape[0]
+    xy = np.empty((m, 2))
+    g = np.empty((m, 2))
+    to_px = np.empty((m, 2, 2))
+    ba_edgelet_planes(cam, line_a, line_b, iters, tol, xy, g, to_px)
+    angle = np.empty(m)
+    ba_edgelet_plane_angles(poses, frames, mcam, medg, angle)
+    along = np.empty((m, 2))
+    ba_edgelet_place(plane, poses, frames, mcam, medg, offset_px, to_px, along)
+    return xy, g, to_px, angle, along
 
 
 @njit(nogil=True, cache=True)
@@ -167,8 +185,8 @@ def ba_edgelet_residuals(cam, poses, frames, meas, along, offset_px, to_px, use,
 def ba_edgelet_linearise(err, jp, je, e2, bad, use, c2, medg, mrow, U, ea, V, eb, A, B, live):
     """Add the Tukey-weighted edgelet terms to U, ε_a (free camera rows ``mrow``, −1 fixed) and set V, ε_b and the
     weighted rows A = √w·jp (M, 2, 6), B = √w·je (M, 2, 4) of the measurements that are ``live`` (out) in the
-    system; W = AᵀB is never formed (``ba_edgelet_schur``). ``err``, ``jp``, ``je``, ``e2``, ``bad`` from
-    ``ba_edgelet_rows``. U is symmetric on entry and on return."""
+    system; W = AᵀB is never formed (``bundle_schur_kernels.ba_edgelet_schur``). ``err``, ``jp``, ``je``, ``e2``,
+    ``bad`` from ``ba_edgelet_rows``. U is symmetric on entry and on return."""
     V[:] = 0.0
     eb[:] = 0.0
     for k in range(medg.shape[0]):
@@ -187,6 +205,31 @@ def ba_edgelet_linearise(err, jp, je, e2, bad, use, c2, medg, mrow, U, ea, V, eb
         for a in range(6):
             for b in range(a):
                 U[r, b, a] = U[r, a, b]
+
+
+@njit(nogil=True, cache=True)
+def ba_edgelet_linearise_at(cam, poses, frames, meas, along, rows, terms, use, c2, mrow, normal, live):
+    """One linearisation in one call: ``ba_edgelet_rows`` at this state (``rows``; False when they were taken for
+    a pooled Tukey cut-off) and ``ba_edgelet_linearise``; returns the robust cost. ``terms`` = (err, jp, je, e2,
+    bad), ``normal`` = (U, ε_a, V, ε_b, A, B)."""
+    err, jp, je, e2, bad = terms
+    U, ea, V, eb, A, B = normal
+    if rows:
+        ba_edgelet_rows(cam, poses, frames, meas, use, along, err, jp, je, e2, bad)
+    ba_edgelet_linearise(err, jp, je, e2, bad, use, c2, meas[1], mrow, U, ea, V, eb, A, B, live)
+    return ba_robust_cost(e2, bad, use, c2)
+
+
+@njit(nogil=True, cache=True)
+def ba_edgelet_trial(cam, poses, frames, de, meas, along, offset_px, to_px, live, out, c2):
+    """A trial step in one call: the frames after the updates ``de`` (``frames_updated``), the residuals of the
+    measurements ``live`` there at the linearisation's sample points ``along`` (``ba_edgelet_residuals``; ``out`` =
+    (err, e2, bad, placed)) and their robust cost. Returns (frames, cost)."""
+    err, e2, bad, placed = out
+    F = np.empty_like(frames)
+    frames_updated(frames, de, F)
+    ba_edgelet_residuals(cam, poses, F, meas, along, offset_px, to_px, live, err, e2, bad, placed)
+    return F, ba_robust_cost(e2, bad, live, c2)
 
 
 @njit(nogil=True, cache=True, inline="always")
@@ -226,51 +269,6 @@ def ba_edgelet_seen_update(jp, je, de, medg, use, bad, seen):
             if g2 > 0.0 and d * d > seen[e] * g2:
                 seen[e] = d * d / g2
     return seen.sum()
-
-
-@njit(nogil=True, cache=True)
-def inv_sym4(M, lam, out, L, Li):
-    """out = (M with its diagonal × (1 + λ))⁻¹ by Cholesky, or zeros when that is not positive definite (as
-    ``inv_sym3`` does for points). ``L``, ``Li`` are 4×4 scratch."""
-    for i in range(4):
-        for j in range(i + 1):
-            s = M[i, j] * (1.0 + lam) if i == j else M[i, j]
-            for k in range(j):
-                s -= L[i, k] * L[j, k]
-            if i == j:
-                if not s > 0.0:
-                    out[:] = 0.0
-                    return
-                L[i, i] = math.sqrt(s)
-            else:
-                L[i, j] = s / L[j, j]
-    for i in range(4):
-        Li[i, i] = 1.0 / L[i, i]
-        for j in range(i):
-            s = 0.0
-            for k in range(j, i):
-                s -= L[i, k] * Li[k, j]
-            Li[i, j] = s / L[i, i]
-        for j in range(i + 1, 4):
-            Li[i, j] = 0.0
-    for i in range(4):
-        for j in range(4):
-            s = 0.0
-            for k in range(max(i, j), 4):
-                s += Li[k, i] * Li[k, j]
-            out[i, j] = s
-
-
-@njit(nogil=True, cache=True)
-def ba_edgelet_schur(V, eb, A, B, live, lam, mrow, e_start, order, pair_id, blocks, rhs, Vinv):
-    """Subtract the edgelets' W V*⁻¹ Wᵀ from the reduced system's ``blocks`` and W V*⁻¹ ε_b from ``rhs``
-    (``bundle_schur_kernels.eliminate``, as for points; ``pair_id``: the edgelets' part of ``ba_pair_script``'s walk);
-    V*⁻¹ (E, 4, 4) is kept for the back-substitution (``bundle_schur_kernels.ba_backsub``)."""
-    L = np.zeros((4, 4))
-    Li = np.zeros((4, 4))
-    for e in range(e_start.shape[0] - 1):
-        inv_sym4(V[e], lam, Vinv[e], L, Li)
-    eliminate(Vinv, eb, A, B, live, mrow, e_start, order, pair_id, blocks, rhs)
 
 
 @njit(nogil=True, cache=True)

@@ -2,7 +2,7 @@
 
 Every keyframe measurement of an edgelet gives two perpendicular distances ε_n from virtual sample points ±5 px
 from its projected centre to the measured line (eq. 6–7); the edgelet's four degrees of freedom (eq. 9) are
-eliminated by the Schur complement like a point's three (``bundle_edgelet_kernels``). An ``EdgeletLM`` without
+eliminated by the Schur complement like a point's three (``bundle_schur_kernels``). An ``EdgeletLM`` without
 edgelets adds nothing anywhere, so a points-only adjustment runs exactly as before.
 
 Robust weights. §4.4 chose distances in pixels because it "makes them compatible with the M-Estimator also used
@@ -17,7 +17,7 @@ is (PTAM §6.4).
 
 The measurement plane. A straight edge projects to a curve in a distorted image, and eq. 7's projections of the
 sample points through the lens took most of an edgelet's cost in an iteration (an arctangent each on a FOV lens).
-Each measured line is moved once, at the start, to the normalised image plane (``lens_linearised``): the point a
+Each measured line is moved once, at the start, to the normalised image plane (``plane_camera``): the point a
 unprojected, the normal m̂ pulled back through L, the lens's pixel Jacobian at a. A plane point x is then
 g·(x − a) px from the line, g = m̂ᵀL, to first order in |x − a| (the sample points are about 5 px from a, and
 there a straight edge's plane image is straight where its lens image bends), and a sample point projects with two
@@ -43,44 +43,38 @@ import numpy as np
 from ..camera.camproj_kernels import UNDISTORT_ITERS, UNDISTORT_TOL
 from ..camera.model import KERNEL_PARAMS_LEN, MODEL_IDS, CameraModel
 from ..edgelet import Edgelets
-from ..edgelet.edgelet_ba_kernels import frames_of, frames_updated
+from ..edgelet.edgelet_ba_kernels import frames_of
 from ..vocabulary import LensModel
 from .bundle_edgelet_kernels import (
     ba_edgelet_hold,
-    ba_edgelet_linearise,
-    ba_edgelet_place,
-    ba_edgelet_plane_angles,
-    ba_edgelet_planes,
+    ba_edgelet_linearise_at,
     ba_edgelet_residuals,
     ba_edgelet_rows,
-    ba_edgelet_schur,
     ba_edgelet_seen_update,
+    ba_edgelet_setup,
+    ba_edgelet_trial,
 )
 from .bundle_inputs import EdgeletBundleInput
-from .bundle_kernels import ba_robust_cost
-from .bundle_schur_kernels import ba_backsub
+from .bundle_schur_kernels import ba_backsub, ba_edgelet_schur
 from .bundle_structure import BundleStructure, EdgeletStructure
 
 
-def lens_linearised(camera: CameraModel, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Measured lines through ``a`` (M, 2) px along ``b`` (M, 2) on the normalised image plane: the kernel
-    parameters of its unit pinhole (the lens's range kept: the same points are valid), the unprojected points,
-    the normals g = m̂ᵀL (M, 2) (m̂ the unit normal in the image) and L (M, 2, 2), the lens's pixel Jacobian at each
-    point (``ba_edgelet_planes``; numpy reference ``tests/reference/bundle_edgelets.py``)."""
-    m = len(a)
-    xy, g, to_px = np.empty((m, 2)), np.empty((m, 2)), np.empty((m, 2, 2))
-    a, b = (np.ascontiguousarray(v, dtype=np.float64) for v in (a, b))
-    ba_edgelet_planes(camera.kernel_params(), a, b, UNDISTORT_ITERS, UNDISTORT_TOL, xy, g, to_px)
+def plane_camera(camera: CameraModel) -> np.ndarray:
+    """The kernel parameters of the unit pinhole of ``camera``'s normalised image plane, the lens's range kept (the
+    same points are valid): the camera the measured lines are moved to (``ba_edgelet_planes``: the unprojected
+    points, the normals g = m̂ᵀL, m̂ the unit normal in the image, and L, the lens's pixel Jacobian at each point;
+    numpy reference ``tests/reference/bundle_edgelets.py``)."""
     plane = np.zeros(KERNEL_PARAMS_LEN)
     plane[[0, 1, 2, 10]] = MODEL_IDS[LensModel.PINHOLE], 1.0, 1.0, camera.max_radius
-    return plane, xy, g, to_px
+    return plane
 
 
 class EdgeletLM:
     """The adjusted edgelets (frames E_WE), their measurements and the blocks of the current linearisation."""
 
-    def __init__(self, camera: CameraModel, st: BundleStructure, inp: EdgeletBundleInput | None, P: np.ndarray):
-        """``P``: the starting poses (compact), at which the sample points are first placed (eq. 6)."""
+    def __init__(self, cams: tuple[np.ndarray, np.ndarray], st: BundleStructure, inp: EdgeletBundleInput | None, P):
+        """``cams``: the kernel parameters of the camera and of its normalised plane (``plane_camera``); ``P``: the
+        starting poses (compact), at which the sample points are first placed (eq. 6)."""
         es = st.edgelets if st.edgelets is not None and inp is not None else EdgeletStructure.empty()
         self.es = es
         self.n = len(es.sel)
@@ -95,16 +89,16 @@ class EdgeletLM:
         ed = inp.edgelets
         self.F = np.empty((len(es.ids), 4, 4))
         frames_of(ed.centre, ed.direction, ed.normal, es.ids, self.F)  # orthonormal, as every frame a step makes
-        # The measured lines on the normalised plane: through a, normal g (not unit: pixels per plane unit).
-        self.cam, self.a, self.g, self.to_px = lens_linearised(camera, inp.obs.a[es.sel], inp.obs.b[es.sel])
+        self.F0 = self.F.copy()
         self.offset_px = inp.cfg.ba_sample_offset_px
         self.min_plane_angle = np.radians(inp.cfg.triangulate_min_plane_angle_deg)
-        self.plane_angle = np.empty(self.n)
-        ba_edgelet_plane_angles(P, self.F, es.mcam, es.medg, self.plane_angle)
-        self.along = np.zeros((self.n, 2))
+        # The measured lines on the normalised plane: through a, normal g (not unit: pixels per plane unit).
+        image, self.cam = cams
+        lines = (inp.obs.a[es.sel], inp.obs.b[es.sel], UNDISTORT_ITERS, UNDISTORT_TOL, self.offset_px)
+        start = ba_edgelet_setup(image, self.cam, P, self.F, es.mcam, es.medg, *lines)
+        self.a, self.g, self.to_px, self.plane_angle, self.along = start
+        self.meas = (es.mcam, es.medg, self.a, self.g)
         self.placed = np.zeros((self.n, 2))
-        self.F0 = self.F.copy()
-        ba_edgelet_place(self.cam, P, self.F, es.mcam, es.medg, self.offset_px, self.to_px, self.along)
         ne = len(es.ids)
         self.V = np.zeros((ne, 4, 4))
         self.eb = np.zeros((ne, 4))
@@ -119,48 +113,27 @@ class EdgeletLM:
     def _residuals(self, P: np.ndarray, F: np.ndarray, use: np.ndarray) -> None:
         """e2 and bad (a sample point behind the camera) of the measurements in ``use`` at poses P, frames F, and
         the sample points re-placed there (``placed``)."""
-        es = self.es
-        meas = (es.mcam, es.medg, self.a, self.g)
         args = (self.along, self.offset_px, self.to_px, use, self.err, self.e2, self.bad, self.placed)
-        ba_edgelet_residuals(self.cam, P, F, meas, *args)
+        ba_edgelet_residuals(self.cam, P, F, self.meas, *args)
 
     def residuals(self, P: np.ndarray) -> None:
-        """The residuals at the current state and their Jacobian rows (for ``linearise``), at sample points placed
-        at this state (eq. 6): by ``ba_edgelet_place`` at construction, then by the accepted trial, which projected
-        them there. A trial keeps the sample points of its linearisation, so that its cost is comparable."""
+        """The residuals at the current state and their Jacobian rows, at sample points placed at this state (eq. 6):
+        by ``ba_edgelet_setup`` at construction, then by the accepted trial, which projected them there. A trial
+        keeps the sample points of its linearisation, so that its cost is comparable. ``linearise`` takes them
+        itself unless the Tukey cut-off needs these errors first."""
         if self.n:
-            es = self.es
-            meas = (es.mcam, es.medg, self.a, self.g)
-            ba_edgelet_rows(
-                self.cam, P, self.F, meas, self.use, self.along, self.err, self.jp, self.je, self.e2, self.bad
-            )
+            terms = (self.err, self.jp, self.je, self.e2, self.bad)
+            ba_edgelet_rows(self.cam, P, self.F, self.meas, self.use, self.along, *terms)
 
-    def linearise(self, c2: float, cam_row_blocks: tuple[np.ndarray, np.ndarray]) -> float:
-        """Add the edgelets' Tukey-weighted terms (at the state of the last ``residuals``) to the camera blocks
-        (U, ε_a); their robust cost."""
+    def linearise(self, P: np.ndarray, c2: float, cam_row_blocks: tuple[np.ndarray, np.ndarray], rows: bool) -> float:
+        """Add the edgelets' Tukey-weighted terms at the current state (``rows``: not yet taken there by
+        ``residuals``) to the camera blocks (U, ε_a); their robust cost."""
         if not self.n:
             return 0.0
-        U, ea = cam_row_blocks
-        es = self.es
-        ba_edgelet_linearise(
-            self.err,
-            self.jp,
-            self.je,
-            self.e2,
-            self.bad,
-            self.use,
-            c2,
-            es.medg,
-            es.mrow,
-            U,
-            ea,
-            self.V,
-            self.eb,
-            self.A,
-            self.B,
-            self.live,
-        )
-        return float(ba_robust_cost(self.e2, self.bad, self.use, c2))
+        terms = (self.err, self.jp, self.je, self.e2, self.bad)
+        normal = (*cam_row_blocks, self.V, self.eb, self.A, self.B)
+        args = (self.along, rows, terms, self.use, c2, self.es.mrow, normal, self.live)
+        return float(ba_edgelet_linearise_at(self.cam, P, self.F, self.meas, *args))
 
     def schur(self, lam: float, blocks: np.ndarray, rhs: np.ndarray) -> None:
         if self.n:
@@ -208,10 +181,11 @@ class EdgeletLM:
         """The frames after the step ``de`` and their cost at ``P_new`` on the measurements live at linearisation."""
         if not self.n:
             return None, 0.0
-        F_new = np.empty_like(self.F)
-        frames_updated(self.F, de, F_new)
-        self._residuals(P_new, F_new, self.live)
-        return F_new, float(ba_robust_cost(self.e2, self.bad, self.live, c2))
+        out = (self.err, self.e2, self.bad, self.placed)
+        F_new, cost = ba_edgelet_trial(
+            self.cam, P_new, self.F, de, self.meas, self.along, self.offset_px, self.to_px, self.live, out, c2
+        )
+        return F_new, float(cost)
 
     def accept(self, F_new: np.ndarray | None) -> None:
         """The accepted trial's frames, and its sample points re-placed at the new state."""

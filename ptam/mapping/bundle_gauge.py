@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .bundle_solve_kernels import ba_gauged_solve
 from .bundle_structure import BundleStructure, ReducedSolver
 
 
@@ -38,17 +39,11 @@ class ScaleGauge:
         fixed = np.flatnonzero(~st.free)
         return ScaleGauge(int(fixed[0])) if len(fixed) == 1 and st.n_free else None
 
-    def direction(self, P: np.ndarray, free: np.ndarray) -> np.ndarray:
-        """g (6·n_free,): the free keyframes' pose updates (translation, rotation) that scale the map about the fixed
-        keyframe's centre c₀ by 1 + ε, per unit ε (T ← exp(μ) T: the translation moves by −R (C − c₀))."""
-        F = P[self.fixed]
-        Pf = P[free]
-        g = np.zeros((len(free), 6))
-        g[:, :3] = Pf[:, :3, 3] - Pf[:, :3, :3] @ (F[:3, :3].T @ F[:3, 3])  # −R (C − c₀), C = −Rᵀ t
-        return g.ravel()
-
-    def step(self, solver: ReducedSolver, blocks: np.ndarray, rhs: np.ndarray, g: np.ndarray) -> np.ndarray:
-        """The camera step of S δμ = rhs with gᵀ δμ = 0 (LinAlgError when S does not factorise)."""
-        x, y = solver.solve(blocks, np.stack([rhs, g], axis=1)).T
-        gy = float(g @ y)
-        return x - y * (float(g @ x) / gy) if gy > 0.0 else x
+    def step(self, solver: ReducedSolver, blocks: np.ndarray, rhs: np.ndarray, P: np.ndarray, free: np.ndarray):
+        """The camera step of S δμ = rhs with gᵀ δμ = 0, g the scaling of the keyframes ``free`` at poses ``P``
+        (``ba_gauged_solve``); LinAlgError when S does not factorise."""
+        lower = (solver.rows, solver.cols, solver.rank, solver.first, solver.ptr)
+        x, ok = ba_gauged_solve(blocks, *lower, rhs, P, self.fixed, free)
+        if not ok:
+            raise np.linalg.LinAlgError("bundle adjustment: reduced camera system is not positive definite")
+        return x

@@ -5,16 +5,21 @@ MVG 2nd ed., A6.4), for points (3 DOF) and edgelets (4 DOF, Agility §4.4) alike
   GenerateOffDiagScripts); the measurements are sorted by landmark (``order``, ``start``).
 * ``ba_schur``: S = U* − Σ W V*⁻¹ Wᵀ over every camera pair that shares a point (the O(N²M)
   camera-point-camera products of §6.3) and the reduced right-hand side; * means the diagonal × (1 + λ).
-* ``eliminate``: the walk itself, for the points and then the edgelets (``bundle_edgelet_kernels``). A
+* ``eliminate``: the walk itself, for the points and then the edgelets (``ba_edgelet_schur``). A
   measurement's W = AᵀB has rank 2 (its two image coordinates or distances), so each pair's block is
   A_aᵀ (B_a V*⁻¹ B_bᵀ) A_b, through a 2×2 product. Against W V*⁻¹ Wᵀ from 6×3 blocks the points' Schur
   complement took 29 % less time (a desk_bricks global BA), the edgelets' (6×4) 44 % less.
+* ``ba_edgelet_schur``: the edgelets' S −= Σ W V*⁻¹ Wᵀ, V* the diagonal × (1 + λ) inverted by Cholesky; it continues
+  the walk of ``ba_pair_script`` after the points, with the points' ``eliminate`` (W has rank 2 for both: two
+  distances per measurement).
 * ``ba_backsub``: the landmark updates δp = V*⁻¹ (ε_b − Σ Wᵀ δμ), Wᵀ δμ = Bᵀ (A δμ).
 
-The numpy references are in ``tests/reference/bundle.py``.
+The numpy references are in ``tests/reference/bundle.py`` (points) and ``tests/reference/bundle_edgelets.py``.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from numba import njit
@@ -227,3 +232,48 @@ def ba_backsub(Vinv, eb, A, B, live, mrow, start, order, dcam):
                 t += Vinv[p, a, b] * v[b]
             dp[p, a] = t
     return dp
+
+
+@njit(nogil=True, cache=True)
+def inv_sym4(M, lam, out, L, Li):
+    """out = (M with its diagonal × (1 + λ))⁻¹ by Cholesky, or zeros when that is not positive definite (as
+    ``inv_sym3`` does for points). ``L``, ``Li`` are 4×4 scratch."""
+    for i in range(4):
+        for j in range(i + 1):
+            s = M[i, j] * (1.0 + lam) if i == j else M[i, j]
+            for k in range(j):
+                s -= L[i, k] * L[j, k]
+            if i == j:
+                if not s > 0.0:
+                    out[:] = 0.0
+                    return
+                L[i, i] = math.sqrt(s)
+            else:
+                L[i, j] = s / L[j, j]
+    for i in range(4):
+        Li[i, i] = 1.0 / L[i, i]
+        for j in range(i):
+            s = 0.0
+            for k in range(j, i):
+                s -= L[i, k] * Li[k, j]
+            Li[i, j] = s / L[i, i]
+        for j in range(i + 1, 4):
+            Li[i, j] = 0.0
+    for i in range(4):
+        for j in range(4):
+            s = 0.0
+            for k in range(max(i, j), 4):
+                s += Li[k, i] * Li[k, j]
+            out[i, j] = s
+
+
+@njit(nogil=True, cache=True)
+def ba_edgelet_schur(V, eb, A, B, live, lam, mrow, e_start, order, pair_id, blocks, rhs, Vinv):
+    """Subtract the edgelets' W V*⁻¹ Wᵀ from the reduced system's ``blocks`` and W V*⁻¹ ε_b from ``rhs``
+    (``eliminate``, as for points; ``pair_id``: the edgelets' part of ``ba_pair_script``'s walk); V*⁻¹ (E, 4, 4) is
+    kept for the back-substitution (``ba_backsub``)."""
+    L = np.zeros((4, 4))
+    Li = np.zeros((4, 4))
+    for e in range(e_start.shape[0] - 1):
+        inv_sym4(V[e], lam, Vinv[e], L, Li)
+    eliminate(Vinv, eb, A, B, live, mrow, e_start, order, pair_id, blocks, rhs)

@@ -124,3 +124,43 @@ def ba_envelope_solve(blocks, pair_rows, pair_cols, rank, first, ptr, rhs):
             for a in range(6):
                 x[6 * r + a, c] = y[6 * rank[r] + a]
     return x, True
+
+
+@njit(nogil=True, cache=True)
+def scale_direction(poses, fixed, free):
+    """g (6·len(free),): the pose updates (translation, rotation) of the keyframes ``free`` that scale the map about
+    the centre c₀ of keyframe ``fixed`` by 1 + ε, per unit ε (T ← exp(μ) T: the translation moves by −R (C − c₀),
+    C = −Rᵀ t; ``bundle_gauge``)."""
+    F = poses[fixed]
+    c = np.zeros(3)
+    for i in range(3):
+        for j in range(3):
+            c[i] += F[j, i] * F[j, 3]  # Rᵀ t = −c₀
+    g = np.zeros(6 * free.shape[0])
+    for i in range(free.shape[0]):
+        P = poses[free[i]]
+        for r in range(3):
+            g[6 * i + r] = P[r, 3] - (P[r, 0] * c[0] + P[r, 1] * c[1] + P[r, 2] * c[2])
+    return g
+
+
+@njit(nogil=True, cache=True)
+def ba_gauged_solve(blocks, pair_rows, pair_cols, rank, first, ptr, rhs, poses, fixed, free):
+    """δμ = S⁻¹b − S⁻¹g (gᵀS⁻¹b)/(gᵀS⁻¹g), the solution of S δμ = b (``rhs``) with gᵀ δμ = 0 (``bundle_gauge``),
+    g = ``scale_direction``; both solves on one factorisation (``ba_envelope_solve``), in one call. Returns (δμ, ok).
+    """
+    g = scale_direction(poses, fixed, free)
+    both = np.empty((rhs.shape[0], 2))
+    both[:, 0] = rhs
+    both[:, 1] = g
+    xy, ok = ba_envelope_solve(blocks, pair_rows, pair_cols, rank, first, ptr, both)
+    x = xy[:, 0].copy()
+    gx = 0.0
+    gy = 0.0
+    for i in range(g.shape[0]):
+        gx += g[i] * xy[i, 0]
+        gy += g[i] * xy[i, 1]
+    if ok and gy > 0.0:
+        for i in range(g.shape[0]):
+            x[i] -= xy[i, 1] * (gx / gy)
+    return x, ok
