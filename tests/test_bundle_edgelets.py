@@ -217,8 +217,10 @@ def test_setup_kernel_is_the_three_start_kernels(problem):
     angle, along = np.empty(n), np.empty((n, 2))
     EK.ba_edgelet_plane_angles(P, F, obs.kf, obs.edgelet, angle)
     EK.ba_edgelet_place(plane, P, F, obs.kf, obs.edgelet, off, to_px, along)
-    lines = (obs.a, obs.b, UNDISTORT_ITERS, UNDISTORT_TOL, off)
-    got = EK.ba_edgelet_setup(cam.kernel_params(), plane, P, F, obs.kf, obs.edgelet, *lines)
+    lines = (obs.a, obs.b, np.arange(n))
+    got = EK.ba_edgelet_setup(
+        cam.kernel_params(), plane, P, F, obs.kf, obs.edgelet, lines, UNDISTORT_ITERS, UNDISTORT_TOL, off
+    )
     assert np.isfinite(angle).sum() > 0.95 * n and np.all(along[:, 1] > 0.0)
     for a, b in zip(got, (xy, g, to_px, angle, along), strict=True):
         assert np.array_equal(a, b, equal_nan=True)

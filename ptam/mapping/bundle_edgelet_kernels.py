@@ -107,16 +107,18 @@ def ba_edgelet_place(cam, poses, frames, mcam, medg, offset_px, to_px, along):
 
 
 @njit(nogil=True, cache=True)
-def ba_edgelet_setup(cam, plane, poses, frames, mcam, medg, line_a, line_b, iters, tol, offset_px):
+def ba_edgelet_setup(cam, plane, poses, frames, mcam, medg, lines, iters, tol, offset_px):
     """An adjustment's start in one call (``bundle_edgelets.EdgeletLM``; separately, the Python between the calls
-    took as long as the kernels): the measured lines ``line_a``, ``line_b`` (M, 2) moved to the normalised plane
-    (``ba_edgelet_planes``: xy, g, to_px), each measurement's plane angle (``ba_edgelet_plane_angles``) and its
-    sample points (``ba_edgelet_place`` in ``plane``, the unit pinhole's parameters), at ``poses`` and ``frames``."""
+    took as long as the kernels): the measured lines a + λb of ``lines`` = (a, b, sel), rows ``sel`` of a and b,
+    moved to the normalised plane (``ba_edgelet_planes``: xy, g, to_px), each measurement's plane angle
+    (``ba_edgelet_plane_angles``) and its sample points (``ba_edgelet_place`` in ``plane``, the unit pinhole's
+    parameters), at ``poses`` and ``frames``."""
+    line_a, line_b, sel = lines
     m = mcam.shape[0]
     xy = np.empty((m, 2))
     g = np.empty((m, 2))
     to_px = np.empty((m, 2, 2))
-    ba_edgelet_planes(cam, line_a, line_b, iters, tol, xy, g, to_px)
+    ba_edgelet_planes(cam, line_a[sel], line_b[sel], iters, tol, xy, g, to_px)
     angle = np.empty(m)
     ba_edgelet_plane_angles(poses, frames, mcam, medg, angle)
     along = np.empty((m, 2))

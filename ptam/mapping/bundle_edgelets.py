@@ -69,6 +69,9 @@ def plane_camera(camera: CameraModel) -> np.ndarray:
     return plane
 
 
+_UNDISTORT = (UNDISTORT_ITERS, UNDISTORT_TOL)
+
+
 class EdgeletLM:
     """The adjusted edgelets (frames E_WE), their measurements and the blocks of the current linearisation."""
 
@@ -94,8 +97,8 @@ class EdgeletLM:
         self.min_plane_angle = np.radians(inp.cfg.triangulate_min_plane_angle_deg)
         # The measured lines on the normalised plane: through a, normal g (not unit: pixels per plane unit).
         image, self.cam = cams
-        lines = (inp.obs.a[es.sel], inp.obs.b[es.sel], UNDISTORT_ITERS, UNDISTORT_TOL, self.offset_px)
-        start = ba_edgelet_setup(image, self.cam, P, self.F, es.mcam, es.medg, *lines)
+        lines = (inp.obs.a, inp.obs.b, es.sel)
+        start = ba_edgelet_setup(image, self.cam, P, self.F, es.mcam, es.medg, lines, *_UNDISTORT, self.offset_px)
         self.a, self.g, self.to_px, self.plane_angle, self.along = start
         self.meas = (es.mcam, es.medg, self.a, self.g)
         self.placed = np.zeros((self.n, 2))
