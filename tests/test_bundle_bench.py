@@ -11,6 +11,7 @@ def test_bench_reports_buckets_and_summary_line(monkeypatch):
     monkeypatch.setattr(bench_ba, "BENCH_KEYFRAMES", (10, 50, 100))
     monkeypatch.setattr(bench_ba, "LOCAL_REPEATS", 1)
     monkeypatch.setattr(bench_edgelets, "EDGELET_BENCH_KEYFRAMES", (10,))
+    monkeypatch.setattr(bench_edgelets, "EDGELET_BENCH_REPEATS", 1)
     lines = []
     result = bench_ba.run_ba_benchmark(default_config(), out=lines.append)
     summary = [ln for ln in lines if ln.startswith("local_ba_ms_2_49=")]
