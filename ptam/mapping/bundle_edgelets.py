@@ -75,7 +75,9 @@ _UNDISTORT = (UNDISTORT_ITERS, UNDISTORT_TOL)
 class EdgeletLM:
     """The adjusted edgelets (frames E_WE), their measurements and the blocks of the current linearisation."""
 
-    def __init__(self, cams: tuple[np.ndarray, np.ndarray], st: BundleStructure, inp: EdgeletBundleInput | None, P):
+    def __init__(
+        self, cams: tuple[np.ndarray, np.ndarray], st: BundleStructure, inp: EdgeletBundleInput | None, P: np.ndarray
+    ):
         """``cams``: the kernel parameters of the camera and of its normalised plane (``plane_camera``); ``P``: the
         starting poses (compact), at which the sample points are first placed (eq. 6)."""
         es = st.edgelets if st.edgelets is not None and inp is not None else EdgeletStructure.empty()
