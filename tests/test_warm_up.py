@@ -28,6 +28,11 @@ CAMERAS = {
 # edgelet search: what a live session used to compile or load while frames arrived.
 MAPPER_KERNELS = [
     "ptam.mapping.bundle_schur_kernels.ba_schur",
+    "ptam.mapping.bundle_structure_kernels.landmark_layout",
+    "ptam.mapping.bundle_edgelet_kernels.ba_edgelet_setup",
+    "ptam.mapping.bundle_edgelet_kernels.ba_edgelet_linearise_at",
+    "ptam.mapping.bundle_edgelet_kernels.ba_edgelet_trial",
+    "ptam.mapping.bundle_solve_kernels.ba_gauged_solve",
     "ptam.mapping.bundle_schur_kernels.ba_edgelet_schur",
     "ptam.mapping.bundle_solve_kernels.ba_envelope_solve",
     "ptam.mapping.epipolar_kernels.epipolar_search",
