@@ -291,6 +291,43 @@ def test_residuals_kernel_matches_reference(problem):
     assert dev.max() < 0.5 and np.percentile(dev, 99) < 0.01 and before[moved].max() > 1.0
 
 
+def test_one_call_kernels_are_their_parts(problem):
+    """``ba_edgelet_linearise_at`` and ``ba_edgelet_trial`` (one call each per LM iteration) give exactly what their
+    parts give called one by one: ``ba_edgelet_rows``, ``ba_edgelet_linearise`` and the robust cost; and
+    ``frames_updated``, ``ba_edgelet_residuals`` and the robust cost (each part against numpy elsewhere here)."""
+    st, (cam, P, F, meas, use, _, _, c2), (_, _, _, along, _), _ = _linearised(problem)
+    es, nf, ne, n = st.edgelets, st.n_free, len(st.edgelets.ids), len(use)
+
+    def terms():
+        return np.zeros((n, 2)), np.zeros((n, 2, 6)), np.zeros((n, 2, 4)), np.zeros(n), np.zeros(n, bool)
+
+    def normal():
+        return tuple(np.zeros(s) for s in ((nf, 6, 6), (nf, 6), (ne, 4, 4), (ne, 4), (n, 2, 6), (n, 2, 4)))
+
+    parts, p_normal, p_live = terms(), normal(), np.zeros(n, bool)
+    EK.ba_edgelet_rows(cam, P, F, meas, use, along, *parts)
+    EK.ba_edgelet_linearise(*parts, use, c2, es.medg, es.mrow, *p_normal, p_live)
+    p_cost = K.ba_robust_cost(parts[3], parts[4], use, c2)
+    one, o_normal, o_live = terms(), normal(), np.zeros(n, bool)
+    o_cost = EK.ba_edgelet_linearise_at(cam, P, F, meas, along, True, one, use, c2, es.mrow, o_normal, o_live)
+    assert 0 < p_live.sum() < use.sum() and p_cost > 0.0 and o_cost == p_cost and np.array_equal(o_live, p_live)
+    for a, b in zip(one + o_normal, parts + p_normal, strict=True):
+        assert np.array_equal(a, b)
+
+    de = np.random.default_rng(4).normal(0.0, [0.01, 0.01, 0.02, 0.02], (ne, 4))
+    F_parts = np.empty_like(F)
+    frames_updated(F, de, F_parts)
+    r_parts = (np.zeros((n, 2)), np.zeros(n), np.zeros(n, bool), np.zeros((n, 2)))
+    offset, to_px = CFG.edgelets.ba_sample_offset_px, _image_plane(n)
+    EK.ba_edgelet_residuals(cam, P, F_parts, meas, along, offset, to_px, p_live, *r_parts)
+    cost = K.ba_robust_cost(r_parts[1], r_parts[2], p_live, c2)
+    r_one = (np.zeros((n, 2)), np.zeros(n), np.zeros(n, bool), np.zeros((n, 2)))
+    F_one, cost_one = EK.ba_edgelet_trial(cam, P, F, de, meas, along, offset, to_px, p_live, r_one, c2)
+    assert cost_one == cost > 0.0 and np.array_equal(F_one, F_parts) and not np.array_equal(F_one, F)
+    for a, b in zip(r_one, r_parts, strict=True):
+        assert np.array_equal(a, b)
+
+
 def test_kernels_match_reference(problem):
     st, args, (err, jp, je, _, _), (r_err, r_Jp, r_Je, _) = _linearised(problem)
     cam, P, F, meas, use, e2, bad, c2 = args

@@ -3,7 +3,9 @@
 PTAM factors the dense 6N×6N system (TooN ``Cholesky<>``). Here S's lower triangle is stored as a skyline:
 dense keeps whole rows; sparse first reorders the keyframes to reduce the bandwidth (reverse Cuthill–McKee,
 done by the caller) so fill stays inside the envelope. Plain numba loops, GIL-free: scipy's ``cho_factor``
-and ``splu`` held the GIL for 100–440 ms on PTAM-sized maps while the tracker waited.
+and ``splu`` held the GIL for 100–440 ms on PTAM-sized maps while the tracker waited. ``ba_gauged_solve`` solves
+the same system with the map's scale held (``bundle_gauge``), its direction (``scale_direction``) and both solves
+in one call.
 """
 
 from __future__ import annotations
