@@ -114,6 +114,7 @@ class EdgeletLM:
         self.seen = np.zeros(ne)
         self.jp = np.zeros((self.n, 2, 6))
         self.je = np.zeros((self.n, 2, 4))
+        self.terms = (self.err, self.jp, self.je, self.e2, self.bad)  # ``ba_edgelet_rows``' outputs
 
     def _residuals(self, P: np.ndarray, F: np.ndarray, use: np.ndarray) -> None:
         """e2 and bad (a sample point behind the camera) of the measurements in ``use`` at poses P, frames F, and
@@ -127,17 +128,15 @@ class EdgeletLM:
         keeps the sample points of its linearisation, so that its cost is comparable. ``linearise`` takes them
         itself unless the Tukey cut-off needs these errors first."""
         if self.n:
-            terms = (self.err, self.jp, self.je, self.e2, self.bad)
-            ba_edgelet_rows(self.cam, P, self.F, self.meas, self.use, self.along, *terms)
+            ba_edgelet_rows(self.cam, P, self.F, self.meas, self.use, self.along, *self.terms)
 
     def linearise(self, P: np.ndarray, c2: float, cam_row_blocks: tuple[np.ndarray, np.ndarray], rows: bool) -> float:
         """Add the edgelets' Tukey-weighted terms at the current state (``rows``: not yet taken there by
         ``residuals``) to the camera blocks (U, ε_a); their robust cost."""
         if not self.n:
             return 0.0
-        terms = (self.err, self.jp, self.je, self.e2, self.bad)
         normal = (*cam_row_blocks, self.V, self.eb, self.A, self.B)
-        args = (self.along, rows, terms, self.use, c2, self.es.mrow, normal, self.live)
+        args = (self.along, rows, self.terms, self.use, c2, self.es.mrow, normal, self.live)
         return float(ba_edgelet_linearise_at(self.cam, P, self.F, self.meas, *args))
 
     def schur(self, lam: float, blocks: np.ndarray, rhs: np.ndarray) -> None:

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .bundle_solve_kernels import ba_gauged_solve
-from .bundle_structure import BundleStructure, ReducedSolver
+from .bundle_structure import BundleStructure, ReducedSolver, not_positive_definite
 
 
 @dataclass(frozen=True)
@@ -45,5 +45,5 @@ class ScaleGauge:
         lower = (solver.rows, solver.cols, solver.rank, solver.first, solver.ptr)
         x, ok = ba_gauged_solve(blocks, *lower, rhs, P, self.fixed, free)
         if not ok:
-            raise np.linalg.LinAlgError("bundle adjustment: reduced camera system is not positive definite")
+            raise not_positive_definite()
         return x

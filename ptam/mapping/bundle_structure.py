@@ -148,6 +148,11 @@ def build_structure(
     )
 
 
+def not_positive_definite() -> np.linalg.LinAlgError:
+    """The error of a reduced camera system that does not factorise (PTAM code: "the map is probably corrupt")."""
+    return np.linalg.LinAlgError("bundle adjustment: reduced camera system is not positive definite")
+
+
 class ReducedSolver:
     """Cholesky of the reduced camera system S (PTAM code: TooN ``Cholesky<>`` of the dense 6N×6N matrix).
 
@@ -179,5 +184,5 @@ class ReducedSolver:
         rhs2 = np.ascontiguousarray(rhs, dtype=np.float64).reshape(len(rhs), -1)
         x, ok = ba_envelope_solve(blocks, self.rows, self.cols, self.rank, self.first, self.ptr, rhs2)
         if not ok:
-            raise np.linalg.LinAlgError("bundle adjustment: reduced camera system is not positive definite")
+            raise not_positive_definite()
         return x.reshape(np.shape(rhs))
