@@ -54,6 +54,30 @@ def test_store_grows_snapshots_and_drops_bad_edgelets():
         m.add_edgelet_measurements([5], [0], np.zeros((1, 2)), np.zeros((1, 2)))  # no keyframe 5
 
 
+def test_table_rows_appended_in_parts_equal_one_append_and_leave_snapshots_unchanged():
+    cam = CAMERAS["pinhole"]
+    m = keyframe_map(cam, config().image, POSITIONS[:2])
+    ids = _map_with_edgelets(m, 30)
+    rng = np.random.default_rng(1)
+    rows = (ids, rng.random((30, 4)) > 0.5, rng.random((30, 4)), rng.random((30, 4)), rng.random(30))
+    parts = [slice(0, 4), slice(4, 5), slice(5, 7), slice(7, 8), slice(8, 30)]  # the 3rd and 4th fill spare rows
+    snaps, seen = [], []
+    for p in parts:
+        m.add_edgelet_table_rows(1, *(r[p] for r in rows))
+        snaps.append(m.snapshot())
+        seen.append(tuple(a.copy() for a in snaps[-1].edgelet_tables[1]))
+    for snap, copy_, p in zip(snaps, seen, parts):  # later appends write past the rows a snapshot holds
+        assert all(np.array_equal(a, b) for a, b in zip(snap.edgelet_tables[1], copy_))
+        assert all(np.array_equal(a, r[: p.stop]) for a, r in zip(copy_, rows))
+    m.mark_edgelets_bad([2, 25])
+    m.add_edgelet_table_rows(1, *(r[:3] for r in rows))
+    keep = ~np.isin(ids, [2, 25])
+    expect = [np.concatenate([r[keep], r[:3]]) for r in rows]
+    assert all(np.array_equal(a, e) for a, e in zip(m.snapshot().edgelet_tables[1], expect))
+    assert all(np.array_equal(a, b) for a, b in zip(snaps[-1].edgelet_tables[1], seen[-1]))
+    assert not m.snapshot().edgelet_tables[1][2].flags.writeable
+
+
 def test_map_transform_moves_edgelets_with_points():
     cam = CAMERAS["pinhole"]
     m = keyframe_map(cam, config().image, POSITIONS[:1])

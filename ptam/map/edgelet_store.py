@@ -7,8 +7,9 @@ never physically removed, so their indices are stable. A measurement is keyframe
 
 Per keyframe the store also keeps §5.2's visibility table of the edgelets measured there: their ids and, per
 simulated blur length (a column), visible / r_search / t_min, and the longest blur still measured. Rows are
-appended as edgelets gain measurements; each keyframe's arrays are replaced, never changed, so a snapshot
-shares them safely.
+appended as edgelets gain measurements, into spare capacity past a table's rows (doubled when full, so a table
+of hundreds of rows × 33 blurs is not copied on every append); the rows a table holds are never changed (removing
+rows makes new arrays), so a snapshot shares them safely.
 
 The store knows nothing of edgelet geometry (``ptam.map`` sits below ``ptam.edgelet``); ``Map`` wraps every
 mutation so that its ``version`` changes with it.
@@ -40,6 +41,7 @@ class EdgeletStore:
         self._e = columns(EDGELET_FIELDS)
         self._m = columns(EDGELET_MEAS_FIELDS)
         self.tables: dict[int, tuple[np.ndarray, ...]] = {}
+        self._table_space: dict[int, tuple[np.ndarray, ...]] = {}  # each table's arrays with their spare rows
 
     @property
     def n_total(self) -> int:
@@ -98,8 +100,17 @@ class EdgeletStore:
         """Add rows (edgelet ids, their per-blur visible / r_search / t_min, max blur) to keyframe ``kf``'s table."""
         new: tuple[np.ndarray, ...] = (np.asarray(ids, np.int64), np.asarray(visible, bool), np.asarray(r_search))
         new += (np.asarray(t_min), np.asarray(max_blur))
-        old = self.tables.get(kf)
-        self._set_table(kf, new if old is None else tuple(np.concatenate([o, x]) for o, x in zip(old, new)))
+        old = self.tables.get(kf, ())
+        n, m = (len(old[0]) if old else 0), len(new[0])
+        space = self._table_space.get(kf)
+        if space is None or not old or old[0].base is not space[0] or len(space[0]) < n + m:
+            space = tuple(np.empty((max(n + m, 2 * n), *x.shape[1:]), x.dtype) for x in new)
+            for s, o in zip(space, old):
+                s[:n] = o
+            self._table_space[kf] = space
+        for s, x in zip(space, new):
+            s[n : n + m] = x
+        self._set_table(kf, tuple(s[: n + m] for s in space))
 
     def transform(self, R: np.ndarray, t: np.ndarray, scale: float) -> None:
         """X_new = R·(scale·X_old) + t for centres; directions and normals rotate."""
