@@ -4,8 +4,8 @@ A candidate is a point X on its 3-D line and the line's direction D, in the sour
 at the origin). Triangulating it with keyframe j intersects the planes through the line and each centre; they
 meet at less than the triangulation's own gate (``edgelets.triangulate_min_plane_angle_deg``) when the baseline
 runs nearly along the line: the aperture problem. ``aperture_free`` also asks whether j sees the candidate, inside
-its image, as ``measure_edgelets_in`` would. In numpy these were arrays of every keyframe × candidate built by
-some twenty operations; the numpy reference is ``tests/reference/edgelet_aperture.py``.
+its image, as ``edgelet_mapping`` asks before it measures an edgelet in a keyframe. In numpy these were arrays of
+every keyframe × candidate built by some twenty operations; the numpy reference is ``tests/reference/edgelet_aperture.py``.
 """
 
 from __future__ import annotations

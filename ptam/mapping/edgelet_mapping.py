@@ -19,7 +19,8 @@
 5. new edgelets are refined on their three measurements with the poses fixed (the edgelet blocks of §4.4) and
    measured in every other keyframe;
 
-and every measurement adds its row to the keyframe's visibility table (§5.2), which the tracker reads.
+and every measurement adds its row to the keyframe's visibility table (§5.2), which the tracker reads (at the end of
+the job, one table build per keyframe).
 Candidates whose back-projected plane nearly contains t's centre (§4.3's aperture problem) are attempted again,
 steps 3-5, with the keyframe that frees most of them from it (``edgelet_aperture``).
 """
@@ -120,12 +121,6 @@ def _inside(uv: np.ndarray, shape: tuple, border: float) -> np.ndarray:
     return (uv[:, 0] >= border) & (uv[:, 1] >= border) & (uv[:, 0] <= w - 1 - border) & (uv[:, 1] <= h - 1 - border)
 
 
-def measure_edgelets_in(m: Map, camera: CameraModel, cfg: Config, k: int, ids: np.ndarray) -> int:
-    """Project edgelets ``ids`` into keyframe k, measure them (§4.2) and record the found ones with their
-    visibility-table rows (§5.2); returns how many were found."""
-    return _record(m, cfg, [_measured_in(m, camera, cfg, k, ids)])
-
-
 def _measured_in(m: Map, camera: CameraModel, cfg: Config, k: int, ids: np.ndarray) -> _Found:
     """Edgelets ``ids`` projected into keyframe k and measured there (§4.2): the found ones and their lines."""
     e = cfg.edgelets
@@ -142,18 +137,26 @@ def _measured_in(m: Map, camera: CameraModel, cfg: Config, k: int, ids: np.ndarr
     return k, ids[sel[meas.ok]], meas.a[meas.ok], meas.b[meas.ok]
 
 
-def _record(m: Map, cfg: Config, found: list[_Found]) -> int:
-    """Add the measurements (keyframe, edgelet ids, lines a, b) of several keyframes to the map at once, then each
-    keyframe's visibility-table rows (§5.2); returns how many were added."""
+def _record(m: Map, found: list[_Found], tables: list[_Found]) -> int:
+    """Add the measurements (keyframe, edgelet ids, lines a, b) of several keyframes to the map at once; their
+    visibility-table rows (§5.2) wait in ``tables`` for ``_build_tables``. Returns how many were added."""
     found = [f for f in found if len(f[1])]
     if not found:
         return 0
     kf = np.concatenate([np.full(len(ids), k) for k, ids, _, _ in found])
     m.add_edgelet_measurements(kf, *(np.concatenate([f[i] for f in found]) for i in (1, 2, 3)))
-    for k, ids, a, b in found:
+    tables.extend(found)
+    return len(kf)
+
+
+def _build_tables(m: Map, cfg: Config, found: list[_Found]) -> None:
+    """The visibility-table rows (§5.2) of the measurements ``found``: one table build per keyframe, its rows in the
+    order they were measured (a job measures in some keyframes several times; each row depends on its own
+    measurement only)."""
+    for k in dict.fromkeys(f[0] for f in found):  # keyframes in the order first measured in
+        ids, a, b = (np.concatenate([f[i] for f in found if f[0] == k]) for i in (1, 2, 3))
         t = build_visibility_table(_image(m, k), a, perp(b), cfg.edgelets)
         m.add_edgelet_table_rows(k, ids, t.visible, t.r_search, t.t_min, t.max_blur)
-    return len(kf)
 
 
 def rebuild_visibility_tables(m: Map, cfg: Config, first_kf: int = 0) -> None:
@@ -181,12 +184,17 @@ def integrate_keyframe(
     """The edgelet job for new keyframe k with target keyframe t (the mapper's closest keyframe); ``images``: the
     mapper's keyframe images kept from earlier jobs, if any."""
     start = time.perf_counter()
-    job = _integrate(m, camera, cfg, k, t, images if images is not None else EdgeImages(cfg.edgelets))
+    tables: list[_Found] = []
+    job = _integrate(m, camera, cfg, (k, t), images if images is not None else EdgeImages(cfg.edgelets), tables)
+    _build_tables(m, cfg, tables)
     return dataclasses.replace(job, ms=1e3 * (time.perf_counter() - start))
 
 
-def _integrate(m: Map, camera: CameraModel, cfg: Config, k: int, t: int, images: EdgeImages) -> EdgeletJob:
-    remeasured = measure_edgelets_in(m, camera, cfg, k, _unmeasured(m, k))
+def _integrate(
+    m: Map, camera: CameraModel, cfg: Config, kt: tuple[int, int], images: EdgeImages, tables: list[_Found]
+) -> EdgeletJob:
+    k, t = kt
+    remeasured = _record(m, [_measured_in(m, camera, cfg, k, _unmeasured(m, k))], tables)
     if m.nearest_with_baseline(k, exclude=(t,)) < 0:  # no keyframe to check hypotheses in
         return EdgeletJob(remeasured)
     e = cfg.edgelets
@@ -197,14 +205,14 @@ def _integrate(m: Map, camera: CameraModel, cfg: Config, k: int, t: int, images:
         return EdgeletJob(remeasured)
     src = measure_in_keyframe(_image(m, k), cand.centre, cand.direction, cand.normal, e)
     src = _take(src, np.flatnonzero(src.ok))
-    hypotheses, made, left = _triangulate_with(m, camera, cfg, (k, t), src, images, ())
+    hypotheses, made, left = _triangulate_with(m, camera, cfg, (k, t), src, (images, tables), ())
     added = len(made)
     t2, sel = aperture_retry(m, camera, e, k, t, src) if e.aperture_retry else (-1, made[:0])
     # The retry's hypotheses are checked beside both targets: in t every hypothesis of a candidate the retry
     # takes up projects onto one image line (its plane through k's centre nearly holds t's centre).
     if t2 >= 0 and m.nearest_with_baseline(k, exclude=(t, t2)) >= 0:
         sel = np.setdiff1d(sel, made)  # candidates that became edgelets with t despite the prediction
-        h2, made2, left2 = _triangulate_with(m, camera, cfg, (k, t2), _take(src, sel), images, (t,))
+        h2, made2, left2 = _triangulate_with(m, camera, cfg, (k, t2), _take(src, sel), (images, tables), (t,))
         hypotheses, added = hypotheses + h2, added + len(made2)
         left = tuple(np.union1d(a, sel[b]) for a, b in zip(left, left2))
     matched, kept, measured, triangulated, verified = (len(x) for x in left)
@@ -227,13 +235,14 @@ def _triangulate_with(
     cfg: Config,
     kt: tuple[int, int],
     src: LineMeasurements,
-    images: EdgeImages,
+    images_tables: tuple[EdgeImages, list[_Found]],
     not_checks: tuple[int, ...],
 ) -> tuple[int, np.ndarray, tuple[np.ndarray, ...]]:
     """Steps 3-5 for source candidates ``src`` of keyframe k with target t (``kt``), checked in neither t nor
-    ``not_checks`` (``edgelet_check``): returns the hypotheses measured in t, the candidates that became edgelets,
+    ``not_checks`` (``edgelet_check``), with the job's keyframe ``images`` and pending ``tables`` rows: returns the hypotheses measured in t, the candidates that became edgelets,
     and the candidates left after each step (``EdgeletJob``'s matched, kept, measured, triangulated, verified)."""
     k, t = kt
+    images, tables = images_tables
     e = cfg.edgelets
     sm_t = images.smoothed(m, t)  # Canny's input and the polarity gradient's, for this target
     hits = _epipolar_hits(m, camera, cfg, (k, t), src, images.maximal(m, t))
@@ -248,7 +257,7 @@ def _triangulate_with(
     ver = verify_in_check_keyframes(m, camera, e, checks, tri.edgelets)
     one = _single_hypotheses(hits.cand, tgt.a, tri.ok & ver.ok, e.hypothesis_merge_px)
     meas = (_take(src, hits.cand[one]), tgt, ver)
-    made = _add(m, camera, cfg, (k, t, checks[one]), tri.edgelets.subset(one), meas, one)
+    made = _add(m, camera, cfg, (k, t, checks[one]), tri.edgelets.subset(one), meas, (one, tables))
     stages = (matched, kept, hits.cand, hits.cand[tri.ok], hits.cand[tri.ok & ver.ok])
     return len(hits.cand), hits.cand[one][made], tuple(np.unique(x) for x in stages)
 
@@ -328,11 +337,13 @@ def _single_hypotheses(cand: np.ndarray, tgt_a: np.ndarray, ok: np.ndarray, merg
 
 
 def _add(
-    m: Map, camera: CameraModel, cfg: Config, kfs: tuple, ed: Edgelets, meas: tuple, one: np.ndarray
+    m: Map, camera: CameraModel, cfg: Config, kfs: tuple, ed: Edgelets, meas: tuple, one_tables: tuple
 ) -> np.ndarray:
     """Refine the new edgelets on their source, target and check measurements (poses fixed), add them with those
     measurements, and measure them in every other keyframe (step 5); returns which of them were added. ``kfs``:
-    the source and target keyframes and each new edgelet's check keyframe."""
+    the source and target keyframes and each new edgelet's check keyframe; ``one_tables``: the hypotheses that
+    become them, and the job's pending table rows."""
+    one, tables = one_tables
     n = len(one)
     if n == 0:
         return np.zeros(0, bool)
@@ -354,13 +365,13 @@ def _add(
     seen[checks, np.arange(len(ids))] = False
     for j in np.flatnonzero(seen.any(axis=1)).tolist():  # only the keyframes that see some of them
         found.append(_measured_in(m, camera, cfg, j, ids[seen[j]]))
-    _record(m, cfg, found)
+    _record(m, found, tables)
     return good
 
 
 def _in_view(m: Map, camera: CameraModel, ids: np.ndarray, border: float) -> np.ndarray:
     """(K, N): whether edgelet ``ids[n]``'s centre projects inside keyframe k's image, by ``border`` px (the test
-    ``measure_edgelets_in`` starts with), for every keyframe at once."""
+    ``_measured_in`` starts with), for every keyframe at once."""
     T = m.kf_T_cw
     Xc = np.einsum("kij,nj->kni", T[:, :3, :3], m.edgelets.view("centre")[ids]) + T[:, None, :3, 3]
     flat = Xc.reshape(-1, 3)
