@@ -5,7 +5,8 @@ at the origin). Triangulating it with keyframe j intersects the planes through t
 meet at less than the triangulation's own gate (``edgelets.triangulate_min_plane_angle_deg``) when the baseline
 runs nearly along the line: the aperture problem. ``aperture_free`` also asks whether j sees the candidate, inside
 its image, as ``edgelet_mapping`` asks before it measures an edgelet in a keyframe. In numpy these were arrays of
-every keyframe × candidate built by some twenty operations; the numpy reference is ``tests/reference/edgelet_aperture.py``.
+every keyframe × candidate built by some twenty operations; the numpy reference is
+``tests/reference/edgelet_aperture.py``.
 """
 
 from __future__ import annotations

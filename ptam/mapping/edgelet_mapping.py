@@ -239,8 +239,9 @@ def _triangulate_with(
     not_checks: tuple[int, ...],
 ) -> tuple[int, np.ndarray, tuple[np.ndarray, ...]]:
     """Steps 3-5 for source candidates ``src`` of keyframe k with target t (``kt``), checked in neither t nor
-    ``not_checks`` (``edgelet_check``), with the job's keyframe ``images`` and pending ``tables`` rows: returns the hypotheses measured in t, the candidates that became edgelets,
-    and the candidates left after each step (``EdgeletJob``'s matched, kept, measured, triangulated, verified)."""
+    ``not_checks`` (``edgelet_check``), with the job's keyframe ``images`` and pending ``tables`` rows: returns
+    the hypotheses measured in t, the candidates that became edgelets, and the candidates left after each step
+    (``EdgeletJob``'s matched, kept, measured, triangulated, verified)."""
     k, t = kt
     images, tables = images_tables
     e = cfg.edgelets
