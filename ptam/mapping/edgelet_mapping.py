@@ -165,10 +165,11 @@ def rebuild_visibility_tables(m: Map, cfg: Config, first_kf: int = 0) -> None:
     lengths)."""
     st = m.edgelets
     kf = st.view("meas_kf")
-    for k in np.unique(kf[kf >= first_kf]).tolist():  # one table per keyframe
-        sel = kf == k
-        t = build_visibility_table(_image(m, k), st.view("meas_a")[sel], perp(st.view("meas_b")[sel]), cfg.edgelets)
-        m.add_edgelet_table_rows(k, st.view("meas_edgelet")[sel], t.visible, t.r_search, t.t_min, t.max_blur)
+    found = [
+        (k, *(st.view(f"meas_{c}")[kf == k] for c in ("edgelet", "a", "b")))
+        for k in np.unique(kf[kf >= first_kf]).tolist()
+    ]
+    _build_tables(m, cfg, found)
 
 
 def _unmeasured(m: Map, k: int) -> np.ndarray:
