@@ -5,7 +5,7 @@ import numpy as np
 from ptam.camera import FovCamera
 from ptam.synthetic.rectangle import rectangle_from_spec
 from ptam.synthetic.render import Renderer
-from ptam.synthetic.render_kernels import intersect_rays, render
+from ptam.synthetic.render_kernels import TILE_PX, _camera_frame, _tile_candidates, intersect_rays, render
 from ptam.synthetic.trajectory import look_at
 from tests.reference.render import render_ref
 
@@ -65,3 +65,39 @@ def test_intersect_ref_nearest_hit():
     t, k, a, b = intersect_rays(o, np.tile([0.0, 0.0, 1.0], (3, 1)), rects)
     assert np.allclose(t[:2], [2.0, 2.0]) and k.tolist() == [1, 0, -1] and np.isinf(t[2])
     assert np.allclose([a[0], b[0]], [0.7, 0.6])  # from corner (-0.5, -0.5)
+
+
+def test_tile_culling_keeps_every_hit_and_drops_the_rest():
+    # Cameras among and between the rectangles (some behind the camera, some edge-on, some only grazed), tiles
+    # of 16 px on a 96 x 64 image: every ray's nearest hit must be among its tile's candidates, and most tiles
+    # must test fewer rectangles than the scene has.
+    rng = np.random.default_rng(9)
+    cam = FovCamera(96, 64, 50.0, 50.0, 47.5, 31.5, 0.9)
+    rects = _random_scene(rng, n_rects=8)
+    r = Renderer(cam, rects, supersample=2, background=0.0)
+    TY, TX = r.tile_axis.shape[:2]
+    ty = np.arange(cam.height)[:, None, None] // TILE_PX
+    tx = np.arange(cam.width)[None, :, None] // TILE_PX
+    counts, hits = [], []
+    for _ in range(20):
+        c = rng.uniform(-1.5, 1.5, 3)
+        T = np.eye(4)
+        T[:3, :3] = look_at(c, rng.uniform(-1, 1, 3), [0.0, 1.0, 0.0])
+        T[:3, 3] = c
+        cand = np.empty((TY, TX, 1, len(rects)), np.int64)
+        ncand = np.empty((TY, TX, 1), np.int64)
+        _tile_candidates(_camera_frame(r.rects, T[None]), r.rects, r.tile_axis, r.tile_sin, cand, ncand)
+        _, k, _, _ = intersect_rays(T[:3, 3], r.rays.reshape(-1, 3) @ T[:3, :3].T, r.rects)
+        k = k.reshape(r.rays.shape[:3])
+        member = np.arange(len(rects)) < ncand[..., None]  # (TY, TX, 1, K) valid candidate slots
+        kept = np.zeros((TY, TX, len(rects) + 1), bool)
+        kept[..., -1] = True  # a miss (k = -1) needs no candidate
+        yy, xx, jj = np.nonzero(member[:, :, 0])
+        kept[yy, xx, cand[yy, xx, 0, jj]] = True
+        assert kept[ty, tx, k].all()
+        ascending = np.diff(cand[:, :, 0], axis=-1) > 0
+        assert np.all(ascending | ~member[:, :, 0, 1:])  # the kernel's order: ties go to the same rectangle
+        counts.append(ncand.mean())
+        hits.append(np.mean(k >= 0))
+    assert np.mean(hits) > 0.5  # the rays do hit rectangles
+    assert np.mean(counts) < 0.5 * len(rects)

@@ -15,7 +15,7 @@ import numpy as np
 from ..camera import CameraModel
 from .mipmap import TextureAtlas
 from .rectangle import Rectangle
-from .render_kernels import render
+from .render_kernels import render, tile_cones
 from .texture import make_texture
 
 _DIFF_STEP_PX = 0.5  # half-width of the central difference giving ∂ray/∂(u, v)
@@ -62,6 +62,7 @@ class Renderer:
         for step in (np.array([h, 0.0]), np.array([0.0, h])):
             drays.append((camera.unproject_rays(pix + step) - camera.unproject_rays(pix - step)) / (2.0 * h))
         self.drays = np.ascontiguousarray(np.stack(drays, axis=1).reshape(H, W, 2, 3))
+        self.tile_axis, self.tile_sin = tile_cones(self.rays)
 
     def kernel_args(self, poses_T_wc: np.ndarray) -> tuple:
         a = self.atlas
@@ -78,6 +79,8 @@ class Renderer:
             a.n_levels,
             a.texel,
             self.background,
+            self.tile_axis,
+            self.tile_sin,
         )
 
     def render(self, poses_T_wc: np.ndarray) -> np.ndarray:

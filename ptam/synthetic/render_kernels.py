@@ -6,6 +6,8 @@ rectangle (moved into that sub-frame's camera frame once), and the nearest hit i
 mip-mapping. The mip level is the footprint of one sample step on the hit rectangle's plane,
 ``dP = t·(dd − d·(n·dd)/(n·d))`` for the pixel-centre ray d and its differentials dd, so texture detail
 finer than a sample is filtered, not aliased; it is computed once per pixel, sub-frame and rectangle.
+Pixels are rendered in tiles, and a tile's rays are tested only against the rectangles whose cone of rays meets
+the tile's (``_tile_candidates``): 1.3-1.5 of a desk scene's 8 rectangles, and the same image.
 
 Packed inputs:
   rays   (H, W, S, 3)  unit camera-frame rays of the samples
@@ -27,6 +29,9 @@ from numba import njit
 
 _EPS_DENOM = 1e-12  # rays this parallel to a rectangle's plane never hit it
 _EPS_T = 1e-9  # hits closer than this to the ray origin are ignored
+_EPS_PLANE = 1e-12  # camera centres this close to a rectangle's plane (m), or degenerate edges: never culled
+_CONE_PAD = 1e-6  # rad added to a tile's cone, far above rounding: culling never drops a ray's hit
+TILE_PX = 16  # tile side (px) over which rectangles are culled
 
 
 @njit(nogil=True, cache=True, inline="always")
@@ -73,16 +78,71 @@ def _mip_level(r, drays, y, x, cx, cy, cz, scale):
 
 
 @njit(nogil=True, cache=True)
-def render(
-    rays, crays, drays, sample_step, poses, rects, rect_tex, tex_data, tex_info, tex_levels, tex_texel, background, out
-):
-    """Fill ``out`` (H, W) float32 with the mean shade of every pixel's samples over all sub-frames."""
-    H, W, S = rays.shape[0], rays.shape[1], rays.shape[2]
-    P = poses.shape[0]
-    K = rects.shape[0]
-    inv_n = 1.0 / (P * S)
-    # The rectangles in each sub-frame's camera frame (rays then need no rotation): origin, axis a, axis b,
-    # normal, and the normal's distance term n·origin.
+def _tile_candidates(rc, rects, tile_axis, tile_sin, cand, ncand):
+    """For every tile and sub-frame, the rectangles (ascending) that some sample ray of the tile may hit.
+
+    The rays that hit a rectangle are the convex cone spanned by its corners (any point of the rectangle is a
+    convex combination of them), bounded by the planes through the camera centre and each edge. A tile's rays lie
+    within a cone of half-angle α about its axis u, so when u is more than 90° + α from one of those planes'
+    inward normals, no ray of the tile hits the rectangle. The test is conservative, so the nearest hit of every
+    ray, and the image, are unchanged."""
+    P, K = rc.shape[0], rc.shape[1]
+    TY, TX = tile_axis.shape[0], tile_axis.shape[1]
+    corners = np.empty((4, 3))
+    normals = np.empty((P, K, 4, 3))
+    whole = np.zeros((P, K), dtype=np.bool_)  # the camera centre (nearly) in the rectangle's plane: never culled
+    for p in range(P):
+        for k in range(K):
+            if abs(rc[p, k, 12]) < _EPS_PLANE:
+                whole[p, k] = True
+                continue
+            for i in range(3):
+                corners[0, i] = rc[p, k, i]
+                corners[1, i] = rc[p, k, i] + rc[p, k, 3 + i] * rects[k, 12]
+                corners[2, i] = corners[1, i] + rc[p, k, 6 + i] * rects[k, 13]
+                corners[3, i] = rc[p, k, i] + rc[p, k, 6 + i] * rects[k, 13]
+            for e in range(4):
+                c0 = corners[e]
+                c1 = corners[(e + 1) % 4]
+                c2 = corners[(e + 2) % 4]
+                nx = c0[1] * c1[2] - c0[2] * c1[1]
+                ny = c0[2] * c1[0] - c0[0] * c1[2]
+                nz = c0[0] * c1[1] - c0[1] * c1[0]
+                nn = math.sqrt(nx * nx + ny * ny + nz * nz)
+                if nn < _EPS_PLANE:
+                    whole[p, k] = True
+                    break
+                if nx * c2[0] + ny * c2[1] + nz * c2[2] < 0.0:
+                    nn = -nn
+                normals[p, k, e, 0] = nx / nn
+                normals[p, k, e, 1] = ny / nn
+                normals[p, k, e, 2] = nz / nn
+    for ty in range(TY):
+        for tx in range(TX):
+            ux = tile_axis[ty, tx, 0]
+            uy = tile_axis[ty, tx, 1]
+            uz = tile_axis[ty, tx, 2]
+            lim = -tile_sin[ty, tx]
+            for p in range(P):
+                n = 0
+                for k in range(K):
+                    keep = True
+                    if not whole[p, k]:
+                        for e in range(4):
+                            if normals[p, k, e, 0] * ux + normals[p, k, e, 1] * uy + normals[p, k, e, 2] * uz < lim:
+                                keep = False
+                                break
+                    if keep:
+                        cand[ty, tx, p, n] = k
+                        n += 1
+                ncand[ty, tx, p] = n
+
+
+@njit(nogil=True, cache=True)
+def _camera_frame(rects, poses):
+    """(P, K, 13): the rectangles in each sub-frame's camera frame (rays then need no rotation): origin, axis a,
+    axis b, normal, and the normal's distance term n·origin."""
+    P, K = poses.shape[0], rects.shape[0]
     rc = np.empty((P, K, 13))
     for p in range(P):
         for k in range(K):
@@ -94,12 +154,58 @@ def render(
                         acc += poses[p, j, i] * w  # R_wcᵀ · w
                     rc[p, k, 3 * v + i] = acc
             rc[p, k, 12] = rc[p, k, 9] * rc[p, k, 0] + rc[p, k, 10] * rc[p, k, 1] + rc[p, k, 11] * rc[p, k, 2]
+    return rc
+
+
+@njit(nogil=True, cache=True)
+def render(
+    rays,
+    crays,
+    drays,
+    sample_step,
+    poses,
+    rects,
+    rect_tex,
+    tex_data,
+    tex_info,
+    tex_levels,
+    tex_texel,
+    background,
+    tile_axis,
+    tile_sin,
+    out,
+):
+    """Fill ``out`` (H, W) float32 with the mean shade of every pixel's samples over all sub-frames.
+
+    Pixels are visited in tiles of ``TILE_PX`` whose rays lie within ``tile_sin`` (sine of the half-angle) of the
+    unit ``tile_axis`` (``tile_cones``); each tile's rays are tested only against the rectangles they may hit."""
+    P, K = poses.shape[0], rects.shape[0]
+    rc = _camera_frame(rects, poses)
+    TY, TX = tile_axis.shape[0], tile_axis.shape[1]
+    cand = np.empty((TY, TX, P, K), dtype=np.int64)
+    ncand = np.empty((TY, TX, P), dtype=np.int64)
+    _tile_candidates(rc, rects, tile_axis, tile_sin, cand, ncand)
+    for ty in range(TY):
+        for tx in range(TX):
+            _render_tile(
+                rays, crays, drays, sample_step, rc, rects, rect_tex, tex_data, tex_info, tex_levels, tex_texel,
+                background, cand[ty, tx], ncand[ty, tx], ty * TILE_PX, tx * TILE_PX, out,
+            )  # fmt: skip
+
+
+@njit(nogil=True, cache=True)
+def _render_tile(
+    rays, crays, drays, sample_step, rc, rects, rect_tex, tex_data, tex_info, tex_levels, tex_texel, background,
+    cand, ncand, y0, x0, out,
+):  # fmt: skip
+    """The pixels of the tile from (x0, y0), their rays tested against the tile's candidates ``cand[p, :ncand[p]]``
+    in sub-frame p. Candidates are ascending, so a tie in depth goes to the lower index, as without culling."""
+    H, W, S = rays.shape[0], rays.shape[1], rays.shape[2]
+    P, K = rc.shape[0], rc.shape[1]
     lam_k = np.empty(K)  # mip level of each rectangle at the current pixel and sub-frame, once needed
-    for y in range(H):
-        for x in range(W):
-            cx = crays[y, x, 0]
-            cy = crays[y, x, 1]
-            cz = crays[y, x, 2]
+    inv_n = 1.0 / (P * S)
+    for y in range(y0, min(H, y0 + TILE_PX)):
+        for x in range(x0, min(W, x0 + TILE_PX)):
             acc = 0.0
             for p in range(P):
                 lam_k[:] = -1.0
@@ -111,7 +217,8 @@ def render(
                     kb = -1
                     ab = 0.0
                     bb = 0.0
-                    for k in range(K):
+                    for j in range(ncand[p]):
+                        k = cand[p, j]
                         nd = rc[p, k, 9] * dx + rc[p, k, 10] * dy + rc[p, k, 11] * dz
                         if abs(nd) < _EPS_DENOM:
                             continue
@@ -134,7 +241,8 @@ def render(
                         continue
                     t = rect_tex[kb]
                     if lam_k[kb] < 0.0:
-                        lam_k[kb] = _mip_level(rc[p, kb], drays, y, x, cx, cy, cz, sample_step / tex_texel[t])
+                        c = crays[y, x]
+                        lam_k[kb] = _mip_level(rc[p, kb], drays, y, x, c[0], c[1], c[2], sample_step / tex_texel[t])
                     lam = lam_k[kb]
                     top = tex_levels[t] - 1
                     if lam >= top:
@@ -150,6 +258,23 @@ def render(
                         v = (1.0 - frac) * v + frac * v1
                     acc += v
             out[y, x] = acc * inv_n
+
+
+def tile_cones(rays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per ``TILE_PX`` tile of the sample rays (H, W, S, 3): the unit mean ray (TY, TX, 3), and the sine of the
+    largest angle from it to a ray of the tile, padded by ``_CONE_PAD`` rad (2 where that reaches 90°: no tile
+    culling)."""
+    H, W = rays.shape[:2]
+    TY, TX = -(-H // TILE_PX), -(-W // TILE_PX)
+    pad = np.full((TY * TILE_PX, TX * TILE_PX) + rays.shape[2:], np.nan)
+    pad[:H, :W] = rays
+    tiles = pad.reshape(TY, TILE_PX, TX, TILE_PX, -1, 3).transpose(0, 2, 1, 3, 4, 5).reshape(TY, TX, -1, 3)
+    axis = np.nansum(tiles, axis=2)
+    axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+    cos = np.nanmin(np.einsum("yxnc,yxc->yxn", tiles, axis), axis=2)
+    alpha = np.arccos(np.clip(cos, -1.0, 1.0)) + _CONE_PAD
+    sin = np.where(alpha < 0.5 * np.pi, np.sin(alpha), 2.0)
+    return np.ascontiguousarray(axis), np.ascontiguousarray(sin)
 
 
 def intersect_rays(origins, dirs, rects):
