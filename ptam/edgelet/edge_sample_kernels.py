@@ -94,6 +94,12 @@ def correlate(sig, centre, h, w, first, last, resp, p0, p1):
     for i in range(lo, hi + 1):
         p0[i + 1] = p0[i] + sig[i]
         p1[i + 1] = p1[i] + (i - centre) * sig[i]
+    responses(sig, centre, h, w, first, last, resp, p0, p1)
+
+
+@njit(nogil=True, cache=True, inline="always")
+def responses(sig, centre, h, w, first, last, resp, p0, p1):
+    """``correlate``'s responses from its prefix sums ``p0``, ``p1`` of sig[centre + first − h … centre + last + h]."""
     scale = w[h + 1] if h >= 2 else 0.0
     end = w[2 * h]
     for t in range(first, last + 1):
@@ -102,6 +108,30 @@ def correlate(sig, centre, h, w, first, last, resp, p0, p1):
         b = i0 + h
         inner = (p1[b] - p1[a]) - t * (p0[b] - p0[a])
         resp[t - first] = scale * inner + end * (sig[i0 + h] - sig[i0 - h])
+
+
+@njit(nogil=True, cache=True, inline="always")
+def box_blur_prefix(sig, centre, lo, hi, half, out, p0, p1):
+    """out[i] = the mean of sig[i − half … i + half] for i = lo … hi, with ``correlate``'s prefix sums of ``out``
+    over the same range into ``p0``, ``p1``, in one pass: the same values as blurring and then summing, at the
+    cost of one serial chain instead of two."""
+    s = 0.0
+    for j in range(lo - half, lo + half + 1):
+        s += sig[j]
+    inv = 1.0 / (2 * half + 1)
+    q0 = 0.0
+    q1 = 0.0
+    p0[lo] = q0
+    p1[lo] = q1
+    for i in range(lo, hi + 1):
+        if i > lo:
+            s += sig[i + half] - sig[i - half - 1]
+        v = s * inv
+        out[i] = v
+        q0 = q0 + v
+        q1 = q1 + (i - centre) * v
+        p0[i + 1] = q0
+        p1[i + 1] = q1
 
 
 @njit(nogil=True, cache=True, inline="always")

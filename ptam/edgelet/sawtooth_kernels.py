@@ -30,11 +30,13 @@ from numba import njit
 
 from .edge_sample_kernels import (
     bilinear,
+    box_blur_prefix,
     correlate,
     parabola_peak,
     profile,
     ramp_half_width,
     ramp_weights,
+    responses,
     symmetric_peak,
 )
 
@@ -187,15 +189,8 @@ def visibility_table(img, centres, normals, blurs, max_search, centre_tol, tmin_
             e = ext + R + 1 + h
             if a - bh < lo or e + bh > hi:
                 lo, hi = _sample_outwards(img, x, y, nx, ny, sig, ext, lo, hi, min(lo, a - bh), max(hi, e + bh))
-            s = 0.0
-            for j in range(a - bh, a + bh + 1):
-                s += sig[j]
-            inv = 1.0 / (2 * bh + 1)
-            blurred[a] = s * inv
-            for j in range(a + 1, e + 1):
-                s += sig[j + bh] - sig[j - bh - 1]
-                blurred[j] = s * inv
-            correlate(blurred, ext, h, w[b], -R - 1, R + 1, resp, p0, p1)
+            box_blur_prefix(sig, ext, a, e, bh, blurred, p0, p1)
+            responses(blurred, ext, h, w[b], -R - 1, R + 1, resp, p0, p1)
             centre_k = -1
             for k in range(max(1, R + 1 - reach), min(2 * R + 1, R + 1 + reach) + 1):
                 if not _local_max(resp, k, 0.0):
