@@ -101,3 +101,21 @@ def test_tile_culling_keeps_every_hit_and_drops_the_rest():
         hits.append(np.mean(k >= 0))
     assert np.mean(hits) > 0.5  # the rays do hit rectangles
     assert np.mean(counts) < 0.5 * len(rects)
+
+
+def test_tile_culling_never_drops_a_rectangle_seen_edge_on():
+    # A camera in a rectangle's plane (off the rectangle) and one on the line through one of its edges: the edge
+    # planes are degenerate there, and the rectangle must stay a candidate of every tile.
+    rng = np.random.default_rng(3)
+    cam = FovCamera(64, 48, 40.0, 40.0, 31.5, 23.5, 0.9)
+    r = Renderer(cam, _random_scene(rng, n_rects=3), supersample=1, background=0.0)
+    o, a, b = r.rects[1, 0:3], r.rects[1, 3:6], r.rects[1, 6:9]
+    TY, TX = r.tile_axis.shape[:2]
+    for c in (o - 0.7 * a + 0.3 * b, o - 0.5 * a):
+        T = np.eye(4)
+        T[:3, :3] = look_at(c, o + 0.5 * r.rects[1, 12] * a + 0.5 * r.rects[1, 13] * b, [0.0, 0.0, 1.0])
+        T[:3, 3] = c
+        cand = np.empty((TY, TX, 1, 3), np.int64)
+        ncand = np.empty((TY, TX, 1), np.int64)
+        _tile_candidates(_camera_frame(r.rects, T[None]), r.rects, r.tile_axis, r.tile_sin, cand, ncand)
+        assert np.all(np.any((cand[..., 0, :] == 1) & (np.arange(3) < ncand), axis=-1))

@@ -29,7 +29,9 @@ from numba import njit
 
 _EPS_DENOM = 1e-12  # rays this parallel to a rectangle's plane never hit it
 _EPS_T = 1e-9  # hits closer than this to the ray origin are ignored
-_EPS_PLANE = 1e-12  # camera centres this close to a rectangle's plane (m), or degenerate edges: never culled
+# A rectangle whose plane passes this close to the camera centre, or one of whose edges nearly lines up with it,
+# relative to its distance and size, is never culled: its edge planes would be too ill-conditioned to trust.
+_EPS_CULL = 1e-9
 _CONE_PAD = 1e-6  # rad added to a tile's cone, far above rounding: culling never drops a ray's hit
 TILE_PX = 16  # tile side (px) over which rectangles are culled
 
@@ -93,7 +95,8 @@ def _tile_candidates(rc, rects, tile_axis, tile_sin, cand, ncand):
     whole = np.zeros((P, K), dtype=np.bool_)  # the camera centre (nearly) in the rectangle's plane: never culled
     for p in range(P):
         for k in range(K):
-            if abs(rc[p, k, 12]) < _EPS_PLANE:
+            reach = math.sqrt(rc[p, k, 0] ** 2 + rc[p, k, 1] ** 2 + rc[p, k, 2] ** 2) + rects[k, 12] + rects[k, 13]
+            if abs(rc[p, k, 12]) < _EPS_CULL * reach:
                 whole[p, k] = True
                 continue
             for i in range(3):
@@ -109,7 +112,7 @@ def _tile_candidates(rc, rects, tile_axis, tile_sin, cand, ncand):
                 ny = c0[2] * c1[0] - c0[0] * c1[2]
                 nz = c0[0] * c1[1] - c0[1] * c1[0]
                 nn = math.sqrt(nx * nx + ny * ny + nz * nz)
-                if nn < _EPS_PLANE:
+                if nn < _EPS_CULL * reach * reach:
                     whole[p, k] = True
                     break
                 if nx * c2[0] + ny * c2[1] + nz * c2[2] < 0.0:
