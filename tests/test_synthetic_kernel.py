@@ -5,9 +5,9 @@ import numpy as np
 from ptam.camera import FovCamera
 from ptam.synthetic.rectangle import rectangle_from_spec
 from ptam.synthetic.render import Renderer
-from ptam.synthetic.render_kernels import TILE_PX, _camera_frame, _tile_candidates, intersect_rays, render
+from ptam.synthetic.render_kernels import TILE_PX, _camera_frame, _tile_candidates, intersect_rays, render, tile_cones
 from ptam.synthetic.trajectory import look_at
-from tests.reference.render import render_ref
+from tests.reference.render import render_ref, tile_cones_ref
 
 
 def _random_scene(rng, n_rects=4):
@@ -119,3 +119,16 @@ def test_tile_culling_never_drops_a_rectangle_seen_edge_on():
         ncand = np.empty((TY, TX, 1), np.int64)
         _tile_candidates(_camera_frame(r.rects, T[None]), r.rects, r.tile_axis, r.tile_sin, cand, ncand)
         assert np.all(np.any((cand[..., 0, :] == 1) & (np.arange(3) < ncand), axis=-1))
+
+
+def test_tile_cones_match_reference_and_hold_every_ray():
+    # 50 x 37 px: the last tiles of each row and column are partial.
+    cam = FovCamera(50, 37, 40.0, 40.0, 24.5, 18.0, 0.9)
+    r = Renderer(cam, _random_scene(np.random.default_rng(1), n_rects=1), supersample=3, background=0.0)
+    axis, sin = tile_cones(r.rays)
+    axis_ref, sin_ref = tile_cones_ref(r.rays)
+    assert axis.shape == (3, 4, 3) and np.abs(axis - axis_ref).max() < 1e-12 and np.abs(sin - sin_ref).max() < 1e-12
+    ty = np.arange(cam.height)[:, None, None] // TILE_PX
+    tx = np.arange(cam.width)[None, :, None] // TILE_PX
+    cos = np.einsum("yxsc,yxsc->yxs", r.rays, axis[ty, tx])
+    assert np.all(np.sqrt(1.0 - np.minimum(cos, 1.0) ** 2) < sin[ty, tx] - 0.5e-6)  # within the cone, past the pad

@@ -263,21 +263,43 @@ def _render_tile(
             out[y, x] = acc * inv_n
 
 
-def tile_cones(rays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+@njit(nogil=True, cache=True)
+def tile_cones(rays):
     """Per ``TILE_PX`` tile of the sample rays (H, W, S, 3): the unit mean ray (TY, TX, 3), and the sine of the
     largest angle from it to a ray of the tile, padded by ``_CONE_PAD`` rad (2 where that reaches 90°: no tile
-    culling)."""
-    H, W = rays.shape[:2]
-    TY, TX = -(-H // TILE_PX), -(-W // TILE_PX)
-    pad = np.full((TY * TILE_PX, TX * TILE_PX) + rays.shape[2:], np.nan)
-    pad[:H, :W] = rays
-    tiles = pad.reshape(TY, TILE_PX, TX, TILE_PX, -1, 3).transpose(0, 2, 1, 3, 4, 5).reshape(TY, TX, -1, 3)
-    axis = np.nansum(tiles, axis=2)
-    axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
-    cos = np.nanmin(np.einsum("yxnc,yxc->yxn", tiles, axis), axis=2)
-    alpha = np.arccos(np.clip(cos, -1.0, 1.0)) + _CONE_PAD
-    sin = np.where(alpha < 0.5 * np.pi, np.sin(alpha), 2.0)
-    return np.ascontiguousarray(axis), np.ascontiguousarray(sin)
+    culling). Rays that are not finite are left out."""
+    H, W, S = rays.shape[0], rays.shape[1], rays.shape[2]
+    TY = (H + TILE_PX - 1) // TILE_PX
+    TX = (W + TILE_PX - 1) // TILE_PX
+    axis = np.zeros((TY, TX, 3))
+    sin = np.full((TY, TX), 2.0)
+    for ty in range(TY):
+        for tx in range(TX):
+            y1, x1 = min(H, (ty + 1) * TILE_PX), min(W, (tx + 1) * TILE_PX)
+            sx = sy = sz = 0.0
+            for y in range(ty * TILE_PX, y1):
+                for x in range(tx * TILE_PX, x1):
+                    for s in range(S):
+                        if np.isfinite(rays[y, x, s, 0] + rays[y, x, s, 1] + rays[y, x, s, 2]):
+                            sx += rays[y, x, s, 0]
+                            sy += rays[y, x, s, 1]
+                            sz += rays[y, x, s, 2]
+            n = math.sqrt(sx * sx + sy * sy + sz * sz)
+            if not n > 0.0:
+                continue
+            ux, uy, uz = sx / n, sy / n, sz / n
+            cmin = 1.0
+            for y in range(ty * TILE_PX, y1):
+                for x in range(tx * TILE_PX, x1):
+                    for s in range(S):
+                        c = ux * rays[y, x, s, 0] + uy * rays[y, x, s, 1] + uz * rays[y, x, s, 2]
+                        if np.isfinite(c):
+                            cmin = min(cmin, c)
+            alpha = math.acos(max(-1.0, min(1.0, cmin))) + _CONE_PAD
+            axis[ty, tx, 0], axis[ty, tx, 1], axis[ty, tx, 2] = ux, uy, uz
+            if alpha < 0.5 * math.pi:
+                sin[ty, tx] = math.sin(alpha)
+    return axis, sin
 
 
 def intersect_rays(origins, dirs, rects):

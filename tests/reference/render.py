@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ptam.synthetic.render_kernels import _EPS_DENOM, intersect_rays
+from ptam.synthetic.render_kernels import _CONE_PAD, _EPS_DENOM, TILE_PX, intersect_rays
 
 
 def _bilinear_ref(tex_data, tex_info, t, lev, fx, fy):
@@ -81,3 +81,18 @@ def render_ref(
         val[~hit] = background
         acc += val.reshape(H, W, S).sum(axis=2)
     return (acc / (len(poses) * S)).astype(np.float32)
+
+
+def tile_cones_ref(rays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Numpy reference of :func:`tile_cones` (the tiles padded with NaN)."""
+    H, W = rays.shape[:2]
+    TY, TX = -(-H // TILE_PX), -(-W // TILE_PX)
+    pad = np.full((TY * TILE_PX, TX * TILE_PX) + rays.shape[2:], np.nan)
+    pad[:H, :W] = rays
+    tiles = pad.reshape(TY, TILE_PX, TX, TILE_PX, -1, 3).transpose(0, 2, 1, 3, 4, 5).reshape(TY, TX, -1, 3)
+    axis = np.nansum(tiles, axis=2)
+    axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+    cos = np.nanmin(np.einsum("yxnc,yxc->yxn", tiles, axis), axis=2)
+    alpha = np.arccos(np.clip(cos, -1.0, 1.0)) + _CONE_PAD
+    sin = np.where(alpha < 0.5 * np.pi, np.sin(alpha), 2.0)
+    return np.ascontiguousarray(axis), np.ascontiguousarray(sin)
