@@ -3,6 +3,8 @@ a plain background, rendered into keyframes at known poses (the edgelet map and 
 
 from __future__ import annotations
 
+import functools
+
 import cv2
 import numpy as np
 
@@ -66,11 +68,17 @@ def look_at(pos, target=LOOK_AT) -> np.ndarray:
     return se3.inv(se3.from_Rt(np.stack([x, np.cross(z, x), z], axis=1), pos))
 
 
+@functools.lru_cache(maxsize=2)
+def _renderer(camera, samples: int) -> Renderer:
+    """The cards' renderer for a camera (by identity): its rays take seconds to build at 6×6 samples a pixel, and
+    the tests render many keyframes through the same two cameras."""
+    return Renderer(camera, cards(), samples, BACKGROUND)
+
+
 def render(camera, T_cw: np.ndarray, seed: int, samples: int = 6) -> np.ndarray:
     """The cards seen from the poses T_cw (P, 4, 4), averaged (P > 1: motion blur), with a 0.7 px lens blur and
     one grey level of noise."""
-    renderer = Renderer(camera, cards(), samples, BACKGROUND)
-    img = renderer.render(se3.inv(np.asarray(T_cw).reshape(-1, 4, 4)))
+    img = _renderer(camera, samples).render(se3.inv(np.asarray(T_cw).reshape(-1, 4, 4)))
     img = cv2.GaussianBlur(img, (0, 0), 0.7) + np.random.default_rng(seed).normal(0, 1.0, img.shape)
     return np.clip(np.round(img), 0, 255).astype(np.uint8)
 
