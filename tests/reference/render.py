@@ -22,23 +22,10 @@ def _bilinear_ref(tex_data, tex_info, t, lev, fx, fy):
 
 
 def render_ref(
-    rays,
-    crays,
-    drays,
-    sample_step,
-    poses,
-    rects,
-    rect_tex,
-    tex_data,
-    tex_info,
-    tex_levels,
-    tex_texel,
-    background,
-    tile_axis=None,
-    tile_sin=None,
+    rays, crays, drays, sample_step, poses, rects, rect_tex, tex_data, tex_info, tex_levels, tex_texel, background, *_
 ):
     """Numpy reference of :func:`render` (world frame throughout); returns the (H, W) float32 image. Every ray is
-    tested against every rectangle: the kernel's tile cones only save it work."""
+    tested against every rectangle: the kernel's tile cones (the trailing arguments) only save it work."""
     H, W, S, _ = rays.shape
     acc = np.zeros((H, W))
     for T in poses:  # sub-frames: a handful
