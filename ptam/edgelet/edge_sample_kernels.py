@@ -113,8 +113,8 @@ def responses(sig, centre, h, w, first, last, resp, p0, p1):
 @njit(nogil=True, cache=True, inline="always")
 def box_blur_prefix(sig, centre, lo, hi, half, out, p0, p1):
     """out[i] = the mean of sig[i − half … i + half] for i = lo … hi, with ``correlate``'s prefix sums of ``out``
-    over the same range into ``p0``, ``p1``, in one pass: the same values as blurring and then summing, at the
-    cost of one serial chain instead of two."""
+    over the same range into ``p0``, ``p1``, in one loop: the same values as blurring and then summing, with the
+    three running sums advancing side by side instead of in separate passes."""
     s = 0.0
     for j in range(lo - half, lo + half + 1):
         s += sig[j]
