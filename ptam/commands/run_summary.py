@@ -38,8 +38,11 @@ def print_summary(system, mode: str, dropped: int | None, viewer=None, checkpoin
         f"global {len(ba['global_ba'])})  mode {mode}"
     )
     jobs = ba.get("edgelet_jobs", [])
-    if jobs:  # Agility §9.2 times edgelet extraction per keyframe
-        line += f"  edgelet job ms median {np.median([j.ms for j in jobs]):.1f}"
+    if jobs:  # Agility §9.2 times edgelet extraction per keyframe; the §5.2 tables are the job's last step
+        line += (
+            f"  edgelet job ms median {np.median([j.ms for j in jobs]):.1f}"
+            f" (tables {np.median([j.tables_ms for j in jobs]):.1f})"
+        )
     if dropped is not None:
         line += f"  dropped frames {dropped}"
     if viewer is not None and viewer.dropped:

@@ -64,10 +64,11 @@ if TYPE_CHECKING:
 @dataclass(frozen=True)
 class EdgeletJob:
     """What one keyframe's edgelet job did: measurements of existing edgelets, candidates, matches measured
-    in the target, edgelets added, and its wall time (ms); and how many candidates were left after each step
-    (``FUNNEL``; a candidate counts once, with the target or with the aperture retry's): with a match on the
-    epipolar curve, one kept by the polarity and angle culls, one measured in the target, one whose planes meet
-    at the gate or more, one that passed the check keyframe."""
+    in the target, edgelets added, its wall time (ms) and that of its last step, the §5.2 visibility tables
+    (``tables_ms``; §9.2's 20 ms name edge extraction and adding edgelets); and how many candidates were left
+    after each step (``FUNNEL``; a candidate counts once, with the target or with the aperture retry's): with a
+    match on the epipolar curve, one kept by the polarity and angle culls, one measured in the target, one whose
+    planes meet at the gate or more, one that passed the check keyframe."""
 
     remeasured: int = 0
     candidates: int = 0
@@ -79,6 +80,7 @@ class EdgeletJob:
     measured: int = 0
     triangulated: int = 0
     verified: int = 0
+    tables_ms: float = 0.0
 
     FUNNEL: ClassVar[tuple[str, ...]] = (
         "candidates",
@@ -187,8 +189,10 @@ def integrate_keyframe(
     start = time.perf_counter()
     tables: list[_Found] = []
     job = _integrate(m, camera, cfg, (k, t), images if images is not None else EdgeImages(cfg.edgelets), tables)
+    built = time.perf_counter()
     _build_tables(m, cfg, tables)
-    return dataclasses.replace(job, ms=1e3 * (time.perf_counter() - start))
+    end = time.perf_counter()
+    return dataclasses.replace(job, ms=1e3 * (end - start), tables_ms=1e3 * (end - built))
 
 
 def _integrate(
