@@ -7,7 +7,8 @@ the rest of each keyframe's integration, the points' part (PTAM §6.2: the track
 map's points, the epipolar search for new ones). Agility §9.2 puts the edgelet job at "twice as long as it takes
 to add points", a ratio that does not depend on the machine's speed. Each time is split into the job's last step,
 the §5.2 visibility tables of every measurement it made (which §5.2 says the map-maker builds, and §9.2 does not
-say whether its 20 ms include), and the rest, edge extraction and adding edgelets in §9.2's words.
+say whether its 20 ms include; the job's own wall-time record of that single-threaded step), and the rest, edge
+extraction and adding edgelets in §9.2's words.
 
     python benchmarks/edgelet_job.py                            # desk_bricks, two_wall, desk_table, desk_corner
     python benchmarks/edgelet_job.py --scenes bricks_blur --repeats 5
@@ -30,7 +31,7 @@ import numpy as np
 
 from ptam.bench.accuracy import run_accuracy
 from ptam.config import load_config
-from ptam.mapping import edgelet_mapping, map_maker
+from ptam.mapping import map_maker
 from ptam.mapping.edgelet_images import EdgeImages
 from ptam.mapping.edgelet_mapping import integrate_keyframe
 from ptam.vocabulary import RunMode
@@ -47,33 +48,18 @@ def _copy(m, images: dict) -> object:
     return copy.deepcopy(m, memo)
 
 
-def _tables_timed() -> list:
-    """Time the job's last step, the §5.2 visibility tables (numba, on the calling thread), into the returned
-    list's one element (CPU s, reset by the caller)."""
-    spent = [0.0]
-    build = edgelet_mapping._build_tables
-
-    def timed(m, cfg, found):
-        c = time.thread_time()
-        build(m, cfg, found)
-        spent[0] += time.thread_time() - c
-
-    edgelet_mapping._build_tables = timed
-    return spent
-
-
-def _recorded(jobs: list, images: dict, points: list, tables: list) -> None:
-    """Wrap the mapper's edgelet job (the map copied before it, its CPU ms in the run, of which ``tables[0]``'s
-    tables) and its keyframe integration (the CPU ms of the rest, the points' part, into ``points``)."""
+def _recorded(jobs: list, images: dict, points: list) -> None:
+    """Wrap the mapper's edgelet job (the map copied before it, its CPU ms in the run and the ms of its tables,
+    ``EdgeletJob.tables_ms``) and its keyframe integration (the CPU ms of the rest, the points' part, into
+    ``points``)."""
     inside = [0.0]  # CPU s of the wrapped job, copy included, inside the current integration
 
     def recorded(m, camera, cfg, k, t, cache=None):
         w = time.thread_time()
         state = (_copy(m, images), camera, k, t)
-        tables[0] = 0.0
         c = time.thread_time()
         out = integrate_keyframe(m, camera, cfg, k, t, cache)
-        jobs.append((state, 1e3 * (time.thread_time() - c), 1e3 * tables[0]))
+        jobs.append((state, 1e3 * (time.thread_time() - c), out.tables_ms))
         inside[0] += time.thread_time() - w
         return out
 
@@ -90,20 +76,19 @@ def _recorded(jobs: list, images: dict, points: list, tables: list) -> None:
     map_maker.MapMaker._integrate = integrated
 
 
-def _replayed(jobs: list, cfg, repeats: int, tables: list) -> tuple[np.ndarray, np.ndarray]:
-    """Each job's smallest CPU ms over ``repeats`` in-order replays, one image cache per replay, and the CPU ms of
-    its tables (``tables[0]``) in that replay."""
+def _replayed(jobs: list, cfg, repeats: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each job's smallest CPU ms over ``repeats`` in-order replays, one image cache per replay, and the ms of its
+    tables (``EdgeletJob.tables_ms``) in that replay."""
     times = np.empty((repeats, len(jobs)))
     table_ms = np.empty((repeats, len(jobs)))
     for r in range(repeats):
         cache = EdgeImages(cfg.edgelets)
         for j, ((m, camera, k, t), *_) in enumerate(jobs):
             m = copy.deepcopy(m, {id(kf.pyramid.levels[0]): kf.pyramid.levels[0] for kf in m.keyframes})
-            tables[0] = 0.0
             c = time.process_time()
-            integrate_keyframe(m, camera, cfg, k, t, cache)
+            job = integrate_keyframe(m, camera, cfg, k, t, cache)
             times[r, j] = 1e3 * (time.process_time() - c)
-            table_ms[r, j] = 1e3 * tables[0]
+            table_ms[r, j] = job.tables_ms
     best = (times.argmin(axis=0), np.arange(len(jobs)))
     return times[best], table_ms[best]
 
@@ -117,8 +102,7 @@ def main() -> None:
     jobs: list = []
     images: dict = {}
     points: list = []
-    tables = _tables_timed()
-    _recorded(jobs, images, points, tables)
+    _recorded(jobs, images, points)
     print(
         "scene            jobs | replayed CPU ms median (min-max), tables, rest | "
         "in the run CPU ms median: job, tables, rest, points' part, ratio"
@@ -128,7 +112,7 @@ def main() -> None:
         images.clear()
         points.clear()
         run_accuracy(cfg, scene, RunMode.SYNC)
-        replay, replay_tables = _replayed(jobs, cfg, max(args.repeats, 1), tables)
+        replay, replay_tables = _replayed(jobs, cfg, max(args.repeats, 1))
         live, live_tables = (np.array([job[i] for job in jobs]) for i in (1, 2))
         pts = np.median(points)
         span = f"({replay.min():.1f}-{replay.max():.1f})"
