@@ -226,6 +226,29 @@ def test_bricks_blur_edgelets_outnumber_points_in_the_sweeps_and_hold_the_pose()
     assert 1e3 * on.ate_rmse_m < 1.0 and on.ate_rmse_m < 0.5 * points.ate_rmse_m
 
 
+@pytest.mark.slow
+def test_desk_office_maps_about_five_points_per_edgelet_as_fig4():
+    """desk_office: an office corner of plain surfaces (Agility Fig. 4's door frame, cabinet, desk and screen), mapped
+    in a slow zig-zag. Fig. 4's map holds 5.2 points per edgelet (9400 / 1800) and 7.2 edgelets per keyframe; PTAM's
+    maps hold 50-90 points per keyframe (§7: 4997 on 57). Measured: 697 points and 97 edgelets on 8 keyframes
+    (7.2 : 1; 87 points and 12 edgelets a keyframe; async and realtime 6.7-6.8 : 1), where the photograph-and-gravel
+    desks, corner-rich at every level, hold 30-50 points per edgelet. Every frame is right, and the edgelets make the
+    trajectory no worse (1.29 mm against 1.39 mm with points alone; rotation 0.13 against 0.18 deg)."""
+    d = sequence("desk_office")
+    on, system = _run(d, config())
+    points, _ = _run(d, load_config(overrides=["edgelets.enabled=false"]))
+    snap = system.mapper.snapshot
+    n_points, n_edgelets, n_kf = snap.n_points, len(snap.good_edgelet_indices), snap.n_keyframes
+    print(
+        f"desk_office: {n_points} points, {n_edgelets} edgelets, {n_kf} keyframes; ATE {1e3 * on.ate_rmse_m:.2f} mm "
+        f"against {1e3 * points.ate_rmse_m:.2f} mm with points alone"
+    )
+    assert 0.5 * 5.2 <= n_points / n_edgelets <= 2.0 * 5.2  # "about 5 : 1", within a factor of two of Fig. 4's
+    assert n_edgelets / n_kf >= 0.5 * 7.2 and n_points / n_kf <= 2.0 * 88  # Fig. 4's edgelets, PTAM's points a keyframe
+    assert on.correct_fraction == 1.0 and on.glitches == 0 and 1e3 * on.ate_rmse_m < 2.0
+    assert on.ate_rmse_m <= 1.05 * points.ate_rmse_m
+
+
 def test_edgelets_alone_update_the_pose_when_no_point_is_found(card_map):
     """Under heavy blur every patch may be lost while the edges remain (Agility §5): the fine stage's pose update
     then runs on the edgelets alone. The card map's points are all out of view (behind the cameras); the frame of
