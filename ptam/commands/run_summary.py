@@ -43,6 +43,9 @@ def print_summary(system, mode: str, dropped: int | None, viewer=None, checkpoin
             f"  edgelet job ms median {np.median([j.ms for j in jobs]):.1f}"
             f" (tables {np.median([j.tables_ms for j in jobs]):.1f})"
         )
+    old_kfs = ba.get("edgelet_old_keyframes_ms", [])
+    if old_kfs:  # Agility §4.4: the new edgelets measured in the old keyframes when the mapper is idle
+        line += f"  in old keyframes {np.median(old_kfs):.1f}"
     if dropped is not None:
         line += f"  dropped frames {dropped}"
     if viewer is not None and viewer.dropped:

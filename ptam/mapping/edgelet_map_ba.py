@@ -8,7 +8,7 @@ edgelets' Z of PTAM eq. 11), with all their measurements, the other keyframes he
 Outliers are handled as PTAM §6.4 handles a point's: an edgelet whose source-keyframe measurement is an outlier,
 or that had no more than ``mapper.outlier_min_good_measurements`` measurements, is marked bad; otherwise the
 outlying measurement (and its visibility-table row, §5.2) is dropped. There is no second-chance search: an
-edgelet is measured again in every keyframe added later (§4.4) and re-found in all keyframes when it is made.
+edgelet is measured again in every keyframe added later (§4.4) and in all old keyframes after it is made.
 """
 
 from __future__ import annotations

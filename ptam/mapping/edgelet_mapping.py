@@ -1,4 +1,4 @@
-"""New edgelets for a new keyframe, and measurements of the map's edgelets in keyframes (Agility §4.3, §5.2).
+"""The mapper's edgelet job: new edgelets for a new keyframe, and the map's edgelets measured in it (Agility §4.3).
 
 ``integrate_keyframe`` is the mapper's one edgelet job per (non-panorama) keyframe k:
 
@@ -16,11 +16,14 @@
    hypothesis the nearest that can tell its depth (``edgelet_check``); a candidate becomes an edgelet only if
    exactly one hypothesis passes (hypotheses whose
    target measurements lie within ``hypothesis_merge_px`` are one);
-5. new edgelets are refined on their three measurements with the poses fixed (the edgelet blocks of §4.4) and
-   measured in every other keyframe;
+5. new edgelets are refined on their three measurements with the poses fixed (the edgelet blocks of §4.4);
 
 and every measurement adds its row to the keyframe's visibility table (§5.2), which the tracker reads (at the end of
-the job, one table build per keyframe).
+the job, one table build per keyframe). §4.4's further measurements of the new edgelets "in all old keyframes" are
+not part of the job: the mapper makes them when idle (``edgelet_measurements.measure_newly_made``), as PTAM code
+re-finds new points in old keyframes (``ReFindNewlyMade``) outside adding them. §9.2's 20 ms for "edge extraction
+and adding edgelets", "twice as long as it takes to add points", thereby cover what PTAM's adding points covers:
+the measurements in the new keyframe and the search for new features.
 Candidates whose back-projected plane nearly contains t's centre (§4.3's aperture problem) are attempted again,
 steps 3-5, with the keyframe that frees most of them from it (``edgelet_aperture``).
 """
@@ -38,13 +41,10 @@ from ..edgelet import (
     EdgeletObservations,
     Edgelets,
     LineMeasurements,
-    build_visibility_table,
     extract_candidates,
     gradient_at,
     line_rays,
     measure_in_keyframe,
-    perp,
-    project_edgelets,
     refine_edgelets,
     triangulate_edgelets,
 )
@@ -54,6 +54,7 @@ from .edgelet_check import check_keyframes, verify_in_check_keyframes
 from .edgelet_cull_kernels import polarity_cull
 from .edgelet_epipolar_kernels import curve_hits, curve_vertices
 from .edgelet_images import EdgeImages
+from .edgelet_measurements import Found, build_tables, keyframe_image, measured_in, record, unmeasured
 
 if TYPE_CHECKING:
     from ..camera.model import CameraModel
@@ -103,9 +104,6 @@ class _Hits:
     tangent: np.ndarray
 
 
-_Found = tuple[int, np.ndarray, np.ndarray, np.ndarray]  # keyframe, edgelet ids, measured lines a, b (§4.2)
-
-
 def _keep(h: _Hits, mask: np.ndarray) -> _Hits:
     return _Hits(h.cand[mask], h.uv[mask], h.z[mask], h.tangent[mask])
 
@@ -114,101 +112,34 @@ def _take(m: LineMeasurements, idx) -> LineMeasurements:
     return LineMeasurements(*(getattr(m, f.name)[idx] for f in fields(m)))
 
 
-def _image(m: Map, k: int) -> np.ndarray:
-    return m.keyframes[k].pyramid.levels[0]
-
-
-def _inside(uv: np.ndarray, shape: tuple, border: float) -> np.ndarray:
-    h, w = shape
-    return (uv[:, 0] >= border) & (uv[:, 1] >= border) & (uv[:, 0] <= w - 1 - border) & (uv[:, 1] <= h - 1 - border)
-
-
-def _measured_in(m: Map, camera: CameraModel, cfg: Config, k: int, ids: np.ndarray) -> _Found:
-    """Edgelets ``ids`` projected into keyframe k and measured there (§4.2): the found ones and their lines."""
-    e = cfg.edgelets
-    none = (k, ids[:0], np.zeros((0, 2)), np.zeros((0, 2)))
-    if len(ids) == 0:
-        return none
-    ed = Edgelets(m.edgelets.view("centre")[ids], m.edgelets.view("direction")[ids], m.edgelets.view("normal")[ids])
-    p = project_edgelets(camera, m.kf_T_cw[k], ed)
-    img = _image(m, k)
-    sel = np.flatnonzero(p.valid & _inside(p.centre, img.shape, e.candidate_border_px))
-    if len(sel) == 0:
-        return none
-    meas = measure_in_keyframe(img, p.centre[sel], p.direction[sel], p.normal[sel], e)
-    return k, ids[sel[meas.ok]], meas.a[meas.ok], meas.b[meas.ok]
-
-
-def _record(m: Map, found: list[_Found], tables: list[_Found]) -> int:
-    """Add the measurements (keyframe, edgelet ids, lines a, b) of several keyframes to the map at once; their
-    visibility-table rows (§5.2) wait in ``tables`` for ``_build_tables``. Returns how many were added."""
-    found = [f for f in found if len(f[1])]
-    if not found:
-        return 0
-    kf = np.concatenate([np.full(len(ids), k) for k, ids, _, _ in found])
-    m.add_edgelet_measurements(kf, *(np.concatenate([f[i] for f in found]) for i in (1, 2, 3)))
-    tables.extend(found)
-    return len(kf)
-
-
-def _build_tables(m: Map, cfg: Config, found: list[_Found]) -> None:
-    """The visibility-table rows (§5.2) of the measurements ``found``: one table build per keyframe, its rows in the
-    order they were measured (a job measures in some keyframes several times; each row depends on its own
-    measurement only)."""
-    for k in dict.fromkeys(f[0] for f in found):  # keyframes in the order first measured in
-        ids, a, b = (np.concatenate([f[i] for f in found if f[0] == k]) for i in (1, 2, 3))
-        t = build_visibility_table(_image(m, k), a, perp(b), cfg.edgelets)
-        m.add_edgelet_table_rows(k, ids, t.visible, t.r_search, t.t_min, t.max_blur)
-
-
-def rebuild_visibility_tables(m: Map, cfg: Config, first_kf: int = 0) -> None:
-    """§5.2's tables of keyframes ``first_kf`` on, which have none (read from a map file, or merged from another
-    track: they derive from the keyframe images and the edgelet measurements, with the current config's blur
-    lengths)."""
-    st = m.edgelets
-    kf = st.view("meas_kf")
-    found = [
-        (k, *(st.view(f"meas_{c}")[kf == k] for c in ("edgelet", "a", "b")))
-        for k in np.unique(kf[kf >= first_kf]).tolist()
-    ]
-    _build_tables(m, cfg, found)
-
-
-def _unmeasured(m: Map, k: int) -> np.ndarray:
-    """Good edgelets that keyframe k does not measure."""
-    seen = np.zeros(m.edgelets.n_total, bool)
-    seen[m.edgelets.view("meas_edgelet")[m.edgelets.view("meas_kf") == k]] = True
-    return np.flatnonzero(~seen & ~m.edgelets.view("bad"))
-
-
 def integrate_keyframe(
     m: Map, camera: CameraModel, cfg: Config, k: int, t: int, images: EdgeImages | None = None
 ) -> EdgeletJob:
     """The edgelet job for new keyframe k with target keyframe t (the mapper's closest keyframe); ``images``: the
     mapper's keyframe images kept from earlier jobs, if any."""
     start = time.perf_counter()
-    tables: list[_Found] = []
+    tables: list[Found] = []
     job = _integrate(m, camera, cfg, (k, t), images if images is not None else EdgeImages(cfg.edgelets), tables)
     built = time.perf_counter()
-    _build_tables(m, cfg, tables)
+    build_tables(m, cfg, tables)
     end = time.perf_counter()
     return dataclasses.replace(job, ms=1e3 * (end - start), tables_ms=1e3 * (end - built))
 
 
 def _integrate(
-    m: Map, camera: CameraModel, cfg: Config, kt: tuple[int, int], images: EdgeImages, tables: list[_Found]
+    m: Map, camera: CameraModel, cfg: Config, kt: tuple[int, int], images: EdgeImages, tables: list[Found]
 ) -> EdgeletJob:
     k, t = kt
-    remeasured = _record(m, [_measured_in(m, camera, cfg, k, _unmeasured(m, k))], tables)
+    remeasured = record(m, [measured_in(m, camera, cfg, k, unmeasured(m, k))], tables)
     if m.nearest_with_baseline(k, exclude=(t,)) < 0:  # no keyframe to check hypotheses in
         return EdgeletJob(remeasured)
     e = cfg.edgelets
     measured = m.edgelets.view("meas_kf") == k
     existing = m.edgelets.view("meas_a")[measured]
-    cand = extract_candidates(_image(m, k), e, existing, images.smoothed(m, k))
+    cand = extract_candidates(keyframe_image(m, k), e, existing, images.smoothed(m, k))
     if len(cand) == 0:
         return EdgeletJob(remeasured)
-    src = measure_in_keyframe(_image(m, k), cand.centre, cand.direction, cand.normal, e)
+    src = measure_in_keyframe(keyframe_image(m, k), cand.centre, cand.direction, cand.normal, e)
     src = _take(src, np.flatnonzero(src.ok))
     hypotheses, made, left = _triangulate_with(m, camera, cfg, (k, t), src, (images, tables), ())
     added = len(made)
@@ -240,7 +171,7 @@ def _triangulate_with(
     cfg: Config,
     kt: tuple[int, int],
     src: LineMeasurements,
-    images_tables: tuple[EdgeImages, list[_Found]],
+    images_tables: tuple[EdgeImages, list[Found]],
     not_checks: tuple[int, ...],
 ) -> tuple[int, np.ndarray, tuple[np.ndarray, ...]]:
     """Steps 3-5 for source candidates ``src`` of keyframe k with target t (``kt``), checked in neither t nor
@@ -288,7 +219,7 @@ def _epipolar_hits(
         return _Hits(np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(0), np.zeros((0, 2)))
     ray = np.concatenate([camera.unproject(src.a), np.ones((n, 1))], axis=1)
     T_ts = m.kf_T_cw[t] @ se3.inv(m.kf_T_cw[k])
-    max_len = float(np.hypot(*_image(m, t).shape))  # no piece longer than the image's diagonal
+    max_len = float(np.hypot(*keyframe_image(m, t).shape))  # no piece longer than the image's diagonal
     uv, seg_ok, length = curve_vertices(camera.kernel_params(), T_ts, ray, z, max_len)
     cand, pts, inv_z, tangent = curve_hits(
         uv, seg_ok, length, 1.0 / z, float(e.epipolar_step_px), maximal, float(e.candidate_border_px)
@@ -320,7 +251,7 @@ def _cull(
 
 def _measure_hits(m: Map, t: int, hits: _Hits, sm_t: np.ndarray, e) -> LineMeasurements:
     """§4.2 measurements in t at the matches, along the edge their gradient shows (perp(b) dark → light)."""
-    img = _image(m, t)
+    img = keyframe_image(m, t)
     n_hat = gradient_at(sm_t, hits.uv) if len(hits.cand) else np.zeros((0, 2))
     n_hat = n_hat / np.maximum(np.linalg.norm(n_hat, axis=1), np.finfo(float).tiny)[:, None]
     direction = np.stack([n_hat[:, 1], -n_hat[:, 0]], axis=1)  # perp(direction) = n_hat
@@ -345,8 +276,8 @@ def _single_hypotheses(cand: np.ndarray, tgt_a: np.ndarray, ok: np.ndarray, merg
 def _add(
     m: Map, camera: CameraModel, cfg: Config, kfs: tuple, ed: Edgelets, meas: tuple, one_tables: tuple
 ) -> np.ndarray:
-    """Refine the new edgelets on their source, target and check measurements (poses fixed), add them with those
-    measurements, and measure them in every other keyframe (step 5); returns which of them were added. ``kfs``:
+    """Refine the new edgelets on their source, target and check measurements (poses fixed) and add them with those
+    measurements (step 5); returns which of them were added. ``kfs``:
     the source and target keyframes and each new edgelet's check keyframe; ``one_tables``: the hypotheses that
     become them, and the job's pending table rows."""
     one, tables = one_tables
@@ -366,21 +297,5 @@ def _add(
     checks = checks[good]
     a3, b3 = lines[2][0][good], lines[2][1][good]
     found += [(c, ids[checks == c], a3[checks == c], b3[checks == c]) for c in np.unique(checks).tolist()]
-    seen = _in_view(m, camera, ids, cfg.edgelets.candidate_border_px)
-    seen[[k, t]] = False
-    seen[checks, np.arange(len(ids))] = False
-    for j in np.flatnonzero(seen.any(axis=1)).tolist():  # only the keyframes that see some of them
-        found.append(_measured_in(m, camera, cfg, j, ids[seen[j]]))
-    _record(m, found, tables)
+    record(m, found, tables)
     return good
-
-
-def _in_view(m: Map, camera: CameraModel, ids: np.ndarray, border: float) -> np.ndarray:
-    """(K, N): whether edgelet ``ids[n]``'s centre projects inside keyframe k's image, by ``border`` px (the test
-    ``_measured_in`` starts with), for every keyframe at once."""
-    T = m.kf_T_cw
-    Xc = np.einsum("kij,nj->kni", T[:, :3, :3], m.edgelets.view("centre")[ids]) + T[:, None, :3, 3]
-    flat = Xc.reshape(-1, 3)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inside = camera.valid(flat) & camera.in_image(camera.project(flat), border)
-    return inside.reshape(len(T), len(ids))

@@ -25,9 +25,9 @@ from ..map.snapshot import MapSnapshot
 from ..patch.finder import PatchFinder
 from .bad_points import TrackerFeedback
 from .bundle import Bundle, BundleResult
-from .edgelet_images import EdgeImages
 from .edgelet_map_ba import edgelet_ba_input, handle_edgelet_outliers, keep_edgelets
-from .edgelet_mapping import integrate_keyframe, rebuild_visibility_tables
+from .edgelet_measurements import rebuild_visibility_tables
+from .edgelet_work import EdgeletWork
 from .epipolar import epipolar_matches, unit_plane_corners
 from .gauge import hold_scale
 from .local_ba import local_sets
@@ -65,7 +65,7 @@ class MapMaker:
         self.bundle = Bundle(camera, cfg.bundle)
         self.finder = PatchFinder(cfg.patch)
         self.normals = NormalEstimator(camera, cfg)  # Gauglitz §5.4, the lowest-priority job
-        self.edge_images = EdgeImages(cfg.edgelets)  # kept between edgelet jobs (Agility §4.3)
+        self.edgelets = EdgeletWork(camera, cfg)  # Agility §4.3-§4.4
         self.map = map_ if map_ is not None else Map()
         self.queue: deque[KeyframeRequest] = deque()
         self.snapshot: MapSnapshot | None = None
@@ -144,6 +144,8 @@ class MapMaker:
             self.bundle_adjust(recent=True)
         elif self._new_points:
             self._refind_newly_made()
+        elif self.edgelets.pending:  # Agility §4.4, as new points
+            self.edgelets.measure_pending(self.map, self._abort, self.stats)
         elif not self.full_converged:
             self.bundle_adjust(recent=False)
         elif self._failure_queue:
@@ -190,9 +192,7 @@ class MapMaker:
             else:
                 self.add_some_map_points(k, level)
         if self.cfg.edgelets.enabled and not r.panorama:  # Agility §4.3
-            t = self.map.nearest_with_baseline(k)
-            job = integrate_keyframe(self.map, self.camera, self.cfg, k, t, self.edge_images)
-            self.stats.setdefault("edgelet_jobs", []).append(job)
+            self.edgelets.integrate(self.map, k, self.stats)
         self.recent_converged = self.full_converged = False
         self._integrated += 1
         self.stats["keyframes_added"] += 1

@@ -18,7 +18,7 @@ import numpy as np
 from ..geometry.sim3 import Similarity
 from ..map.map import SRC_REFIND, Map
 from ..map.snapshot import MapSnapshot
-from .edgelet_mapping import rebuild_visibility_tables
+from .edgelet_measurements import rebuild_visibility_tables
 
 if TYPE_CHECKING:
     from .map_maker import MapMaker
@@ -66,7 +66,7 @@ def absorb(mapper: MapMaker, other: MapSnapshot, sim: Similarity, link: Link) ->
     """Merge ``other`` into ``mapper``'s map (in the mapper's thread: only it mutates the map), link the two
     parts, and leave a global bundle adjustment to do (PTAM §6.3)."""
     m = mapper.map
-    n_before = m.n_points_total
+    n_before, e_before = m.n_points_total, m.edgelets.n_total
     k0, p0 = append_map(m, other, sim)
     ids = link.point_ids + p0
     ok = ~m.bad[ids]
@@ -75,5 +75,8 @@ def absorb(mapper: MapMaker, other: MapSnapshot, sim: Similarity, link: Link) ->
         rebuild_visibility_tables(m, mapper.cfg, first_kf=k0)
     mapper.queue_refind(np.arange(p0, m.n_points_total), 0)  # the other's points in this track's keyframes
     mapper.queue_refind(np.arange(n_before), k0)  # this track's points in the other's keyframes
+    if mapper.cfg.edgelets.enabled:  # and so the edgelets (Agility §4.4)
+        mapper.edgelets.queue(np.arange(e_before, m.edgelets.n_total), 0)
+        mapper.edgelets.queue(np.arange(e_before), k0)
     mapper.full_converged = False
     mapper.publish()
