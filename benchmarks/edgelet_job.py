@@ -8,7 +8,9 @@ map's points, the epipolar search for new ones). Agility §9.2 puts the edgelet 
 to add points", a ratio that does not depend on the machine's speed. Each time is split into the job's last step,
 the §5.2 visibility tables of every measurement it made (which §5.2 says the map-maker builds, and §9.2 does not
 say whether its 20 ms include; the job's own wall-time record of that single-threaded step), and the rest, edge
-extraction and adding edgelets in §9.2's words.
+extraction and adding edgelets in §9.2's words. The replay also times what the mapper does later, when idle, with
+each job's new edgelets: measuring them in the old keyframes (§4.4; ``measure_newly_made``, as PTAM's
+``ReFindNewlyMade`` re-finds new points in old keyframes outside adding them).
 
     python benchmarks/edgelet_job.py                            # desk_bricks, two_wall, desk_table, desk_corner
     python benchmarks/edgelet_job.py --scenes bricks_blur --repeats 5
@@ -31,9 +33,10 @@ import numpy as np
 
 from ptam.bench.accuracy import run_accuracy
 from ptam.config import load_config
-from ptam.mapping import map_maker
+from ptam.mapping import edgelet_work, map_maker
 from ptam.mapping.edgelet_images import EdgeImages
 from ptam.mapping.edgelet_mapping import integrate_keyframe
+from ptam.mapping.edgelet_measurements import measure_newly_made
 from ptam.vocabulary import RunMode
 
 DEFAULT_SCENES = "desk_bricks,two_wall,desk_table,desk_corner"
@@ -72,25 +75,31 @@ def _recorded(jobs: list, images: dict, points: list) -> None:
         if not request.panorama:
             points.append(1e3 * (time.thread_time() - c - inside[0]))
 
-    map_maker.integrate_keyframe = recorded
+    edgelet_work.integrate_keyframe = recorded
     map_maker.MapMaker._integrate = integrated
 
 
-def _replayed(jobs: list, cfg, repeats: int) -> tuple[np.ndarray, np.ndarray]:
-    """Each job's smallest CPU ms over ``repeats`` in-order replays, one image cache per replay, and the ms of its
-    tables (``EdgeletJob.tables_ms``) in that replay."""
+def _replayed(jobs: list, cfg, repeats: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each job's smallest CPU ms over ``repeats`` in-order replays, one image cache per replay, the ms of its
+    tables (``EdgeletJob.tables_ms``) in that replay, and the smallest CPU ms of measuring its new edgelets in the
+    old keyframes after it (``measure_newly_made``, the mapper's idle-time work)."""
     times = np.empty((repeats, len(jobs)))
     table_ms = np.empty((repeats, len(jobs)))
+    old_ms = np.empty((repeats, len(jobs)))
     for r in range(repeats):
         cache = EdgeImages(cfg.edgelets)
         for j, ((m, camera, k, t), *_) in enumerate(jobs):
             m = copy.deepcopy(m, {id(kf.pyramid.levels[0]): kf.pyramid.levels[0] for kf in m.keyframes})
+            first = m.edgelets.n_total
             c = time.process_time()
             job = integrate_keyframe(m, camera, cfg, k, t, cache)
             times[r, j] = 1e3 * (time.process_time() - c)
             table_ms[r, j] = job.tables_ms
+            c = time.process_time()
+            measure_newly_made(m, camera, cfg, np.arange(first, m.edgelets.n_total), 0, lambda: False)
+            old_ms[r, j] = 1e3 * (time.process_time() - c)
     best = (times.argmin(axis=0), np.arange(len(jobs)))
-    return times[best], table_ms[best]
+    return times[best], table_ms[best], old_ms.min(axis=0)
 
 
 def main() -> None:
@@ -104,7 +113,7 @@ def main() -> None:
     points: list = []
     _recorded(jobs, images, points)
     print(
-        "scene            jobs | replayed CPU ms median (min-max), tables, rest | "
+        "scene            jobs | replayed CPU ms median (min-max), tables, rest, old keyframes | "
         "in the run CPU ms median: job, tables, rest, points' part, ratio"
     )
     for scene in args.scenes.split(","):
@@ -112,13 +121,13 @@ def main() -> None:
         images.clear()
         points.clear()
         run_accuracy(cfg, scene, RunMode.SYNC)
-        replay, replay_tables = _replayed(jobs, cfg, max(args.repeats, 1))
+        replay, replay_tables, old = _replayed(jobs, cfg, max(args.repeats, 1))
         live, live_tables = (np.array([job[i] for job in jobs]) for i in (1, 2))
         pts = np.median(points)
         span = f"({replay.min():.1f}-{replay.max():.1f})"
         print(
             f"{scene:16s} {len(jobs):4d} | {np.median(replay):8.1f} {span:>13s} "
-            f"{np.median(replay_tables):6.1f} {np.median(replay - replay_tables):6.1f} | "
+            f"{np.median(replay_tables):6.1f} {np.median(replay - replay_tables):6.1f} {np.median(old):6.1f} | "
             f"{np.median(live):8.1f} {np.median(live_tables):6.1f} {np.median(live - live_tables):6.1f} "
             f"{pts:8.1f} {np.median(live) / pts:8.2f}",
             flush=True,
