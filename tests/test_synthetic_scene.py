@@ -140,6 +140,7 @@ BAD_SCENES = {
     "    - {frame: 2, position: [1,0,0], look_at: [1,1,0]}\n",
     "unparsable": "camera: [1, 2\n",
     "extends itself": "extends: me\n",
+    "more rectangles not a list": "extends: two_wall\nmore_rectangles: {name: poster}\n",
 }
 
 
@@ -150,6 +151,19 @@ def test_bad_scene_files_raise_input_error(tmp_path, case):
     with pytest.raises(InputError) as e:
         load_scene(path)
     assert "\n" not in str(e.value)
+
+
+def test_a_scene_adds_rectangles_to_the_one_it_extends(tmp_path):
+    """``more_rectangles`` appends to the base's rectangles, drawn after them; ``rectangles`` would replace them."""
+    poster = (
+        "  - {corners: [[0, 2.9, 1], [1, 2.9, 1], [1, 2.9, 0], [0, 2.9, 0]], texture: {type: constant, value: 9}}\n"
+    )
+    (tmp_path / "more.yaml").write_text("extends: two_wall\nmore_rectangles:\n" + poster)
+    (tmp_path / "only.yaml").write_text("extends: two_wall\nrectangles:\n" + poster)
+    base, more, only = (load_scene(s) for s in ("two_wall", tmp_path / "more.yaml", tmp_path / "only.yaml"))
+    assert len(more.rectangles) == len(base.rectangles) + 1 and len(only.rectangles) == 1
+    assert all(np.array_equal(a.corners(), b.corners()) for a, b in zip(more.rectangles, base.rectangles))
+    assert np.array_equal(more.rectangles[-1].corners(), only.rectangles[0].corners())
 
 
 def test_unknown_scene_name():

@@ -1,7 +1,9 @@
 """Scene files: locating bundled scenes by name, reading YAML, resolving ``extends``, hashing.
 
 A scene file may start from another one with ``extends: NAME`` (a file next to it or a bundled scene) and
-override parts of it: mappings merge key by key, anything else (lists, numbers) replaces the base value.
+override parts of it: mappings merge key by key, anything else (lists, numbers) replaces the base value, but
+``more_rectangles`` is appended to the base's ``rectangles`` (drawn after them), so a variant adds objects
+without repeating the base's.
 The resolved description is what a rendered sequence is keyed by (``scene_hash``) and what is written as
 ``scene.yaml`` next to it, so the output is reproducible from that file alone.
 """
@@ -85,8 +87,13 @@ def resolve_scene(name_or_path: str | Path) -> tuple[str, dict, Path]:
         if base_path.resolve() in seen:
             raise InputError(f"scene {path}: 'extends' loops back to {base_path}")
         seen.append(base_path.resolve())
-        over = {k: v for k, v in d.items() if k != "extends"}
+        over = {k: v for k, v in d.items() if k not in ("extends", "more_rectangles")}
+        more = d.get("more_rectangles", [])
+        if not isinstance(more, list):
+            raise InputError(f"scene {path}: 'more_rectangles' must be a list of rectangles")
         d = _merge(_read(base_path), over)
+        if more:
+            d["rectangles"] = [*(d.get("rectangles") or []), *copy.deepcopy(more)]
     return path.stem, d, path
 
 
